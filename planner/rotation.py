@@ -1,0 +1,92 @@
+"""Rotations in numpy.
+
+Quaternion convention (the whole project): ``[w, x, y, z]``, unit norm, Hamilton product,
+``q_a_b`` rotates vectors of frame b into frame a (``v_a = R(q_a_b) v_b``).
+Pinocchio's free-flyer configuration stores ``[x, y, z, w]``; convert only at that boundary.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def skew(v: ArrayLike) -> NDArray[np.float64]:
+    """Cross-product matrix ``[v]x`` with ``[v]x u = v x u``."""
+    x, y, z = np.asarray(v, dtype=float)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def quat_multiply(q1: ArrayLike, q2: ArrayLike) -> NDArray[np.float64]:
+    """Hamilton product ``q1 ⊗ q2`` of ``[w, x, y, z]`` quaternions."""
+    w1, x1, y1, z1 = np.asarray(q1, dtype=float)
+    w2, x2, y2, z2 = np.asarray(q2, dtype=float)
+    return np.array([
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    ])
+
+
+def quat_conjugate(q: ArrayLike) -> NDArray[np.float64]:
+    """Conjugate (inverse for a unit quaternion)."""
+    w, x, y, z = np.asarray(q, dtype=float)
+    return np.array([w, -x, -y, -z])
+
+
+def quat_to_matrix(q: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrix of a ``[w, x, y, z]`` quaternion (normalised first)."""
+    q = np.asarray(q, dtype=float)
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def matrix_to_quat(R: ArrayLike) -> NDArray[np.float64]:
+    """``[w, x, y, z]`` quaternion (w ≥ 0) of a rotation matrix (Shepperd's method)."""
+    R = np.asarray(R, dtype=float)
+    tr = np.trace(R)
+    if tr > 0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        q = np.array([0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s])
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        q = np.array([(R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s])
+    elif R[1, 1] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        q = np.array([(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s])
+    else:
+        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        q = np.array([(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s])
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0 else -q
+
+
+def rpy_to_matrix(rpy_rad: ArrayLike) -> NDArray[np.float64]:
+    """URDF roll-pitch-yaw (fixed axes x, then y, then z): ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    r, p, y = np.asarray(rpy_rad, dtype=float)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def axis_angle_to_matrix(axis: ArrayLike, angle_rad: float) -> NDArray[np.float64]:
+    """Rodrigues' formula for a rotation of ``angle_rad`` about unit ``axis``."""
+    k = np.asarray(axis, dtype=float)
+    k = k / np.linalg.norm(k)
+    K = skew(k)
+    return np.eye(3) + np.sin(angle_rad) * K + (1.0 - np.cos(angle_rad)) * (K @ K)
+
+
+def rotation_angle_between(R_a: ArrayLike, R_b: ArrayLike) -> float:
+    """Angle (rad) of the relative rotation ``R_aᵀ R_b``, in [0, π]."""
+    R = np.asarray(R_a, dtype=float).T @ np.asarray(R_b, dtype=float)
+    c = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.arccos(c))
