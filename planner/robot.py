@@ -164,7 +164,8 @@ def load_robot(urdf_path: str | Path, ee_frame: str = "grasp_frame") -> RobotMod
             raise ConfigError(src, f"joint {model.names[jid]}", "the arm must be a single serial chain")
         axis = _revolute_axis(jm)
         if axis is None:
-            raise ConfigError(src, f"joint {model.names[jid]}", f"only revolute joints are supported, got {jm.shortname()}")
+            raise ConfigError(src, f"joint {model.names[jid]}",
+                              f"only revolute joints are supported, got {jm.shortname()}")
         iq = jm.idx_q
         iv = jm.idx_v
         placement = model.jointPlacements[jid]
@@ -221,8 +222,9 @@ def _body_of_joint(model: pin.Model, jid: int) -> str:
     raise ConfigError("URDF", f"joint {model.names[jid]}", "no link attached")
 
 
-def _inertia(I: pin.Inertia) -> BodyInertia:
-    return BodyInertia(float(I.mass), np.array(I.lever, dtype=float), np.array(I.inertia, dtype=float))
+def _inertia(inertia: pin.Inertia) -> BodyInertia:
+    return BodyInertia(float(inertia.mass), np.array(inertia.lever, dtype=float),
+                       np.array(inertia.inertia, dtype=float))
 
 
 def _collision_shapes(tree: ET.ElementTree, body_names: list[str], src: str) -> tuple[tuple[PlacedShape, ...], ...]:
@@ -251,7 +253,8 @@ def _collision_shapes(tree: ET.ElementTree, body_names: list[str], src: str) -> 
                     raise ConfigError(src, f"link {body} collision {name}", "box size needs 3 positive numbers")
                 shapes.append(PlacedShape(name, Box(tuple(size)), T))
             else:
-                raise ConfigError(src, f"link {body} collision {name}", "only <box> and <cylinder> (capsule) are supported")
+                raise ConfigError(src, f"link {body} collision {name}",
+                                  "only <box> and <cylinder> (capsule) are supported")
         result.append(tuple(shapes))
     return tuple(result)
 

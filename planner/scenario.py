@@ -387,7 +387,8 @@ def load_scenario(path: str | Path) -> Scenario:
     a.finish()
 
     k = t.table("tracking", default={})
-    tracking = TrackingSettings(k.number("step_s", 0.01, positive=True), k.number("pose_gain_per_s", 2.0, positive=True),
+    tracking = TrackingSettings(k.number("step_s", 0.01, positive=True),
+                                k.number("pose_gain_per_s", 2.0, positive=True),
                                 k.number("nullspace_gain", 0.5, nonnegative=True))
     k.finish()
 

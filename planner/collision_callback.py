@@ -1,0 +1,127 @@
+"""Signed distances of a collision scene as a CasADi function with exact witness-point gradients.
+
+IPOPT needs the collision constraints (Eq. 19) and their first derivatives; python-fcl is not
+symbolic, so the distances enter the NLP through a :class:`casadi.Callback` whose input is the world
+pose of every body at one via point, ``[vec(R_world_body) (9, column-major), p_world_body (3)]`` per
+body, and whose Jacobian comes from the witness points (TrajOpt style): with the witness point a held
+fixed in body A (local coordinates ``a = R_Aᵀ (p_a − p_A)``) and n the unit normal,
+``∂d/∂p_A = −n``, ``∂d/∂R_A[i, j] = −n_i a_j`` (and + for body B). CasADi chains this through the
+symbolic kinematics and the base integration, so the NLP gets exact first derivatives of d wherever the
+witness pair is unique (d is differentiable there for convex shapes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import casadi as ca
+import numpy as np
+
+from planner.collision import CollisionScene
+
+POSE_SIZE = 12  # vec(R) column-major (9) + p (3)
+
+
+def _poses(scene_bodies: Sequence[str], x: np.ndarray) -> dict[str, np.ndarray]:
+    T = {}
+    for i, name in enumerate(scene_bodies):
+        block = x[POSE_SIZE * i: POSE_SIZE * (i + 1)]
+        Ti = np.eye(4)
+        Ti[:3, :3] = block[:9].reshape(3, 3, order="F")
+        Ti[:3, 3] = block[9:]
+        T[name] = Ti
+    return T
+
+
+class _DistanceJacobian(ca.Callback):
+    def __init__(self, owner: SceneDistanceCallback, name: str, opts: dict) -> None:
+        ca.Callback.__init__(self)
+        self.owner = owner
+        self.construct(name, opts)
+
+    def get_n_in(self) -> int:
+        return 2
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.owner.n_x, 1) if i == 0 else ca.Sparsity.dense(self.owner.n_pairs, 1)
+
+    def get_sparsity_out(self, i: int) -> ca.Sparsity:
+        return self.owner.jac_sparsity
+
+    def eval(self, args: list) -> list:
+        _, jac = self.owner.evaluate(np.asarray(args[0]).ravel(), with_jacobian=True)
+        return [ca.DM(jac)]
+
+
+class SceneDistanceCallback(ca.Callback):
+    """``d = f(poses)``: signed distances (m) of every pair of ``scene`` at one via point.
+
+    ``body_order`` fixes where each body's pose sits in the input vector.
+    """
+
+    def __init__(self, name: str, scene: CollisionScene, body_order: Sequence[str]) -> None:
+        ca.Callback.__init__(self)
+        self.scene = scene
+        self.body_order = list(body_order)
+        self.index = {b: i for i, b in enumerate(self.body_order)}
+        self.n_x = POSE_SIZE * len(self.body_order)
+        self.n_pairs = len(scene.pairs)
+        rows, cols = [], []
+        for k, (a, b) in enumerate(scene.pairs):
+            for body in (a, b):
+                start = POSE_SIZE * self.index[body]
+                rows += [k] * POSE_SIZE
+                cols += list(range(start, start + POSE_SIZE))
+        self.jac_sparsity = ca.Sparsity.triplet(self.n_pairs, self.n_x, rows, cols)
+        self._jac: _DistanceJacobian | None = None
+        self.construct(name, {"enable_fd": False})
+
+    def get_n_in(self) -> int:
+        return 1
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.n_x, 1)
+
+    def get_sparsity_out(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.n_pairs, 1)
+
+    def evaluate(self, x: np.ndarray, with_jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """Distances (n_pairs,) and, if asked, the (n_pairs, n_x) Jacobian as a dense array."""
+        T = _poses(self.body_order, x)
+        results = self.scene.distances(T)
+        d = np.array([r.distance_m for r in results])
+        if not with_jacobian:
+            return d, None
+        jac = np.zeros((self.n_pairs, self.n_x))
+        for k, r in enumerate(results):
+            n = r.normal_world
+            for body, point, sign in ((r.pair[0], r.p_world_a, -1.0), (r.pair[1], r.p_world_b, 1.0)):
+                Tb = T[body]
+                local = Tb[:3, :3].T @ (point - Tb[:3, 3])
+                start = POSE_SIZE * self.index[body]
+                # column-major vec(R): entry (i, j) sits at 3 j + i
+                jac[k, start:start + 9] += sign * np.outer(n, local).ravel(order="F")
+                jac[k, start + 9:start + 12] += sign * n
+        return d, jac
+
+    def eval(self, args: list) -> list:
+        d, _ = self.evaluate(np.asarray(args[0]).ravel())
+        return [ca.DM(d)]
+
+    def has_jacobian(self) -> bool:
+        return True
+
+    def get_jacobian(self, name: str, inames: list, onames: list, opts: dict) -> ca.Function:
+        self._jac = _DistanceJacobian(self, name, opts)
+        return self._jac
+
+
+def pose_vector(R, p):  # noqa: ANN001, ANN201 - SX/MX/DM in, same out
+    """``[vec(R) column-major; p]`` — the per-body block of the callback input."""
+    return ca.vertcat(ca.reshape(R, 9, 1), p)

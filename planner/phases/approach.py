@@ -1,0 +1,327 @@
+"""Phase 1, the robot approach: an NLP solved by IPOPT through CasADi (paper Eq. 2-6, 14-21, 23).
+
+Decision variables ``w = [P (7·(N−5)), θ_b(0) (x, z), τ]``: the B-spline parameters of Eq. 23, the base
+offset in the orbital plane (Eq. 16) and the start delay τ along the target trajectory (the planner
+picks when to meet; the approach runs on [τ, τ + t_f¹] after the observation). NLP parameters: the
+observed target state (attitude quaternion, body rates), so one symbolic problem serves every grid point.
+
+Constraints: joint position and velocity boxes at k via points (Eq. 17-18; linear in P), signed
+distance ≥ margin for every collision pair at the via points (Eq. 19, through
+:class:`~planner.collision_callback.SceneDistanceCallback`), and at t_f¹ the end-effector on the
+pre-grasp pose — the grasp pose backed off along its z axis (Eq. 20-21; with a free grasp axis a only
+the direction of a is matched). The base is unactuated with zero momentum: its pose is integrated by
+RK4 inside the NLP (single shooting, paper §4.2). Derivatives are exact: CasADi AD for kinematics and
+dynamics, witness points for distances. Collision callbacks have no second derivatives, so IPOPT runs
+with a limited-memory Hessian.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.bspline import UniformCubicBSpline, approach_vertices
+from planner.collision_callback import SceneDistanceCallback, pose_vector
+from planner.costs import manipulability_sym
+from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
+from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, initial_guesses
+from planner.phases.tracking_profile import TRACKING_NODES, backoff_m
+from planner.robot import fk_function
+from planner.scenario import Scenario
+from planner.scene import build_scene
+from planner.target import TargetState
+from planner.target_symbolic import prediction_function
+
+Array = NDArray[np.float64]
+
+TARGET_STEPS_PER_S = 1.0  # RK4 steps of the symbolic target prediction per second of delay
+TRACKING_RK4_STEPS = 3  # base-drift RK4 steps per tracking-node interval
+
+
+@dataclass(frozen=True)
+class ApproachSolution:
+    """Result of the approach NLP. ``params`` in :mod:`planner.bspline`'s layout (rad, rad/s³)."""
+
+    params: Array
+    base_offset_m: Array  # θ_b(0) in the orbital plane: (x, z)
+    start_delay_s: float
+    q_tracking: Array  # (3, 7) configurations at the tracking nodes (rad)
+    success: bool
+    status: str
+    iterations: int
+    solve_time_s: float
+    cost: float
+    min_distance_m: float  # at the via points, unscaled geometry
+
+
+def _free_axis_rotation(M, axis: Array):  # noqa: ANN001, ANN202
+    """Rotation about ``axis`` by the angle ψ of M about it (symbolic twin of tracking.free_axis_angle)."""
+    e = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    e = e - np.dot(e, axis) * axis
+    e = e / np.linalg.norm(e)
+    Me = ca.mtimes(M, ca.DM(e))
+    c = ca.dot(ca.DM(e), Me)
+    s = ca.dot(ca.DM(axis), ca.cross(ca.DM(e), Me))
+    r = ca.sqrt(c * c + s * s)
+    K = ca.DM(np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]))
+    return ca.DM.eye(3) + (s / r) * K + (1 - c / r) * ca.mtimes(K, K)
+
+
+def _vee_skew(M):  # noqa: ANN001, ANN202
+    """vee((M − Mᵀ)/2): the sin-scaled rotation-error vector of a relative rotation M."""
+    return 0.5 * ca.vertcat(M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1])
+
+
+class ApproachProblem:
+    """The approach NLP of one scenario, built once and solved for many target states.
+
+    The tracking phase's constraints enter the NLP (paper §4.2) through three configuration variables
+    ``Q_tr`` at the tracking nodes (fractions :data:`TRACKING_NODES` of t_f²): the end-effector on the
+    moving grasp frame (with the closing back-off), joint boxes, collision, and joint-velocity bounds on
+    the steps between nodes; the base drift along that path is integrated too. The tracking IK then
+    resolves its redundancy toward these configurations (null-space reference).
+    """
+
+    def __init__(self, scenario: Scenario, ff: FreeFloatingModel | None = None) -> None:
+        self.scenario = sc = scenario
+        self.robot = sc.robot
+        self.ff = ff or FreeFloatingModel(sc.robot)
+        n = self.robot.n_joints
+        st = sc.approach
+        tf = sc.phases.approach_s
+        t2 = sc.phases.tracking_s
+        self.spline = UniformCubicBSpline(st.n_vertices, tf)
+        k = st.via_points
+        m_steps = k * int(np.ceil(st.rk4_steps / k))  # via points sit on RK4 nodes
+        self.k, self.m_steps = k, m_steps
+        self.n_params = n * self.spline.n_free_per_joint
+        n_tr = len(TRACKING_NODES)
+        self.n_w = self.n_params + 3 + n_tr * n
+        self.i_b = self.n_params
+        self.i_tau = self.n_params + 2
+        self.i_tr = self.n_params + 3
+
+        # ---- smooth part: an MX graph over small SX Functions (fast to build, see FINDINGS) -------
+        w = ca.MX.sym("w", self.n_w)
+        p = ca.MX.sym("p", 7)  # target attitude (4) and body rates (3) at the observation
+        P = w[: self.n_params]
+        b = w[self.i_b: self.i_b + 2]
+        tau = w[self.i_tau]
+        Q_tr = [w[self.i_tr + j * n: self.i_tr + (j + 1) * n] for j in range(n_tr)]
+        V = approach_vertices(self.spline, ca.DM(sc.q_initial), P)
+        nodes = np.linspace(0.0, tf, m_steps + 1)
+        mids = 0.5 * (nodes[:-1] + nodes[1:])
+        Qn = self.spline.evaluate(V, nodes)
+        Qdn = self.spline.evaluate(V, nodes, 1)
+        Qm = self.spline.evaluate(V, mids)
+        Qdm = self.spline.evaluate(V, mids, 1)
+        x = ca.vertcat(b[0], 0.0, b[1], 1.0, 0.0, 0.0, 0.0)
+        h0 = ca.DM.zeros(6)
+        dt = tf / m_steps
+        xs = [x]
+        for i in range(m_steps):
+            x = self.ff.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T,
+                                 Qdn[i + 1, :].T, h0, dt)
+            xs.append(x)
+        q_end = Qn[-1, :].T
+        # base drift along the tracking path, joints moving linearly between the tracking nodes
+        tr_times = [f * t2 for f in TRACKING_NODES]
+        x_tr, q_prev, t_prev = [], q_end, 0.0
+        for j, t_node in enumerate(tr_times):
+            h = (t_node - t_prev) / TRACKING_RK4_STEPS
+            qd_seg = (Q_tr[j] - q_prev) / (t_node - t_prev)
+            for s in range(TRACKING_RK4_STEPS):
+                qa = q_prev + qd_seg * (s * h)
+                x = self.ff.rk4_step(x, qa, qd_seg, qa + qd_seg * (h / 2), qd_seg, qa + qd_seg * h, qd_seg, h0, h)
+            x_tr.append(x)
+            q_prev, t_prev = Q_tr[j], t_node
+
+        # target prediction: to τ by ~1 s steps, then along the approach and the tracking nodes
+        target = sc.target
+        max_delay = max(sc.phases.max_start_delay_s, 1e-3)
+        predict_delay = prediction_function(target.inertia_body_kg_m2,
+                                            max(4, int(np.ceil(max_delay * TARGET_STEPS_PER_S))))
+        predict_step = prediction_function(target.inertia_body_kg_m2, max(2, int(np.ceil(tf / k))))
+        att, om = predict_delay(p[:4], p[4:], tau)
+        target_R = []
+        for _ in range(k):
+            att, om = predict_step(att, om, tf / k)
+            target_R.append(quat_to_rotation_sym(att))
+        target_R_tr, t_prev = [], 0.0
+        for t_node in tr_times:
+            att, om = predict_step(att, om, t_node - t_prev)
+            target_R_tr.append(quat_to_rotation_sym(att))
+            t_prev = t_node
+        com = ca.DM(target.p_world_com)
+
+        fk = fk_function(self.robot)
+
+        def scene_poses(x_base, q, R_target):  # noqa: ANN001, ANN202
+            R_wb = quat_to_rotation_sym(x_base[3:7])
+            out = fk(q)
+            blocks = [pose_vector(ca.mtimes(R_wb, out[2 * i]), x_base[:3] + ca.mtimes(R_wb, out[2 * i + 1]))
+                      for i in range(len(self.robot.body_names))]
+            blocks.append(pose_vector(R_target, com))
+            return ca.vertcat(*blocks), ca.mtimes(R_wb, out[-2]), x_base[:3] + ca.mtimes(R_wb, out[-1])
+
+        via_idx = [m_steps // k * (j + 1) for j in range(k)]
+        via_poses = [scene_poses(xs[i], Qn[i, :].T, target_R[j])[0] for j, i in enumerate(via_idx)]
+
+        # end-effector on the pre-grasp pose at t_f¹ (the last via point is t_f¹), Eq. 20-21
+        T_bg = target.grasp.T_body_grasp
+        _, R_ee, p_ee = scene_poses(xs[-1], q_end, target_R[-1])
+        R_g = ca.mtimes(target_R[-1], ca.DM(T_bg[:3, :3]))
+        p_g = com + ca.mtimes(target_R[-1], ca.DM(T_bg[:3, 3]))
+        pos_err = p_ee - (p_g - st.pregrasp_backoff_m * R_g[:, 2])
+        free = target.grasp.free_axis
+        if free is None:
+            rot_err = _vee_skew(ca.mtimes(R_g.T, R_ee))
+            R_free = ca.DM.eye(3)
+        else:
+            # only the free axis direction must match: its components along the two other grasp axes
+            others = [e for e in np.eye(3) if abs(e @ free) < 0.5]
+            a_ee = ca.mtimes(R_ee, ca.DM(free))
+            rot_err = ca.vertcat(*[ca.dot(a_ee, ca.mtimes(R_g, ca.DM(e))) for e in others])
+            R_free = _free_axis_rotation(ca.mtimes(R_g.T, R_ee), free)
+        # tracking nodes: ee on the grasp frame (angle about a free axis kept), back-off closing
+        tr_err, tr_poses = [], []
+        for j, t_node in enumerate(tr_times):
+            poses_j, R_ee_j, p_ee_j = scene_poses(x_tr[j], Q_tr[j], target_R_tr[j])
+            R_G = ca.mtimes(ca.mtimes(target_R_tr[j], ca.DM(T_bg[:3, :3])), R_free)
+            p_G = com + ca.mtimes(target_R_tr[j], ca.DM(T_bg[:3, 3]))
+            d = backoff_m(st.pregrasp_backoff_m, t_node, t2)
+            tr_err += [p_ee_j - (p_G - d * R_G[:, 2]), _vee_skew(ca.mtimes(R_G.T, R_ee_j))]
+            tr_poses.append(poses_j)
+        # joint boxes at the via points (Eq. 17-18) and at the tracking nodes (Eq. 8)
+        q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx], *Q_tr)
+        qd_box = ca.vertcat(*[Qdn[i, :].T for i in via_idx])
+        q_steps = [q_end, *Q_tr]
+        qd_steps = ca.vertcat(*[(q_steps[j + 1] - q_steps[j]) / (tr_times[j] - (tr_times[j - 1] if j else 0.0))
+                                for j in range(n_tr)])
+        # costs (Eq. 14-16)
+        manip = manipulability_sym(self.ff.gen_jacobian(q_end)[0])
+        energy = ca.sumsqr(b)
+        self.pose_size = via_poses[0].numel()
+
+        # ---- NLP: smooth part + collision callbacks ----------------------------------------------
+        self.scene = build_scene(sc, scale=1.0)
+        body_order = [*self.robot.body_names, "target"]
+        self.distance_cb = SceneDistanceCallback("approach_distance", self.scene, body_order)
+        all_poses = [*via_poses, *tr_poses]
+        dists = [self.distance_cb(pz) for pz in all_poses]
+        c = sc.costs
+        cost = c.approach_energy * energy - c.manipulability * manip
+        rob = self.robot
+        n_d = len(self.scene.pairs)
+        n_q_box = k + n_tr
+        margin = sc.limits.collision_margin_m
+        tr_err_v = ca.vertcat(*tr_err)
+        g_parts = [pos_err, rot_err, tr_err_v, q_box, qd_box, qd_steps, *dists]
+        lbg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(rob.q_min, n_q_box),
+               np.tile(-rob.qd_max, k), np.concatenate([-f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
+               np.full(len(all_poses) * n_d, margin)]
+        ubg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(rob.q_max, n_q_box),
+               np.tile(rob.qd_max, k), np.concatenate([f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
+               np.full(len(all_poses) * n_d, np.inf)]
+        self.n_before_dist = sum(part.numel() for part in g_parts[:6])
+        start = sum(part.numel() for part in g_parts[:5])
+        self._rate_slice = slice(start, start + qd_steps.numel())
+        self.tracking_speed_scale = 1.0
+        extra_w, lbw_extra, ubw_extra = [], [], []
+        if c.min_distance > 0:
+            # Eq. 15 on overscaled geometry: maximise a slack s below every scaled distance
+            self.scaled_scene = build_scene(sc, scale=c.overscale)
+            self.scaled_cb = SceneDistanceCallback("approach_distance_scaled", self.scaled_scene, body_order)
+            s = ca.MX.sym("s_dist")
+            extra_w.append(s)
+            lbw_extra.append(-10.0)
+            ubw_extra.append(10.0)
+            for pz in all_poses:
+                g_parts.append(self.scaled_cb(pz) - s)
+                lbg.append(np.zeros(n_d))
+                ubg.append(np.full(n_d, np.inf))
+            cost = cost - c.min_distance * s
+        self.n_extra = len(extra_w)
+        self.lbg = np.concatenate(lbg)
+        self.ubg = np.concatenate(ubg)
+        (bx, bz) = sc.base_offset_bounds_m
+        self.lbw = np.concatenate([np.full(self.n_params, -np.inf), [bx[0], bz[0], 0.0],
+                                   np.tile(rob.q_min, n_tr), lbw_extra])
+        self.ubw = np.concatenate([np.full(self.n_params, np.inf), [bx[1], bz[1], sc.phases.max_start_delay_s],
+                                   np.tile(rob.q_max, n_tr), ubw_extra])
+        nlp = {"x": ca.vertcat(w, *extra_w), "p": p, "f": cost, "g": ca.vertcat(*g_parts)}
+        self.solver = ca.nlpsol("approach", "ipopt", nlp, {
+            "ipopt.hessian_approximation": "limited-memory",
+            "ipopt.max_iter": sc.solver.max_iter,
+            "ipopt.max_wall_time": sc.solver.max_wall_s,
+            "ipopt.tol": sc.solver.tol,
+            "ipopt.acceptable_tol": 1e-4,
+            "ipopt.constr_viol_tol": 1e-7,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "print_time": False,
+        })
+        self.n_pairs = n_d
+        self.n_dist = len(all_poses) * n_d
+
+    def solve(self, state: TargetState, warm_start: ApproachSolution | None = None,
+              max_starts: int = 3, tracking_speed_scale: float | None = None) -> ApproachSolution:
+        """Solve for one observed target state.
+
+        With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if
+        that fails, it starts from up to ``max_starts`` scanned initial guesses, best first, and returns
+        the first success (or the last attempt, with its failure status). ``tracking_speed_scale``
+        scales the tracking-node rate bounds (kept for later solves).
+        """
+        if tracking_speed_scale is not None:
+            self.tracking_speed_scale = tracking_speed_scale
+        t0 = time.perf_counter()
+        starts = []
+        if warm_start is not None:
+            starts.append(np.concatenate([warm_start.params, warm_start.base_offset_m, [warm_start.start_delay_s],
+                                          warm_start.q_tracking.ravel()]))
+        result = None
+        iterations = 0
+        for attempt in range(max_starts + len(starts)):
+            if attempt == len(starts):
+                starts += [np.concatenate([g.params, g.base_offset_m, [g.start_delay_s], g.q_tracking.ravel()])
+                           for g in initial_guesses(self.scenario, self.spline, state, max_starts)]
+            if attempt >= len(starts):
+                break
+            result = self._solve_once(state, starts[attempt])
+            iterations += result.iterations
+            if result.success:
+                break
+        return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+    def _solve_once(self, state: TargetState, w0: Array) -> ApproachSolution:
+        p = np.concatenate([state.attitude_wxyz, state.omega_body_rad_s])
+        w0 = np.clip(w0, self.lbw[: self.n_w], self.ubw[: self.n_w])
+        if self.n_extra:
+            w0 = np.concatenate([w0, [0.0]])
+        t0 = time.perf_counter()
+        lbg, ubg = self.lbg.copy(), self.ubg.copy()
+        lbg[self._rate_slice] *= self.tracking_speed_scale
+        ubg[self._rate_slice] *= self.tracking_speed_scale
+        sol = self.solver(x0=w0, p=p, lbx=self.lbw, ubx=self.ubw, lbg=lbg, ubg=ubg)
+        elapsed = time.perf_counter() - t0
+        stats = self.solver.stats()
+        wopt = np.asarray(sol["x"]).ravel()
+        g = np.asarray(sol["g"]).ravel()
+        dists = g[self.n_before_dist: self.n_before_dist + self.n_dist]
+        return ApproachSolution(
+            params=wopt[: self.n_params],
+            base_offset_m=wopt[self.n_params: self.n_params + 2],
+            start_delay_s=float(wopt[self.i_tau]),
+            q_tracking=wopt[self.i_tr: self.n_w].reshape(len(TRACKING_NODES), -1),
+            success=bool(stats["success"]),
+            status=str(stats["return_status"]),
+            iterations=int(stats["iter_count"]),
+            solve_time_s=elapsed,
+            cost=float(sol["f"]),
+            min_distance_m=float(dists.min()),
+        )

@@ -1,0 +1,279 @@
+"""Initial guess of the approach NLP: when to meet, where to put the base, which arm configuration.
+
+The NLP has many local minima (paper §1); a cold start from θ_in with an arbitrary delay often fails.
+So we scan candidate meeting times over the admissible delay window, solve a small inverse-kinematics
+least-squares problem for the pre-grasp pose at each (joints within limits, base offset within its
+bounds, the base frozen — the arm is ~8 % of the chaser's mass, so the free-floating drift during the
+approach is small and the NLP corrects it), keep the reachable, collision-free candidate with the
+largest clearance, and fit Eq. 23's parameters to a smooth joint motion from θ_in to it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from planner.bspline import UniformCubicBSpline, fit_approach_params
+from planner.costs import manipulability
+from planner.freefloating import FreeFloatingModel
+from planner.phases.tracking import free_axis_angle
+from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
+from planner.robot import fk_function
+from planner.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.scenario import Scenario
+from planner.scene import build_scene, world_poses
+from planner.target import TargetBody, TargetMotion, TargetState
+
+Array = NDArray[np.float64]
+
+DELAY_STEP_S = 2.0  # candidate meeting times are this far apart
+MIN_SEPARATION_S = 6.0  # alternative starts differ at least this much in meeting time
+# node-to-node mean joint speed ≤ this × the limit, per tracking segment: the first segment follows the
+# quintic blend, whose peak rate is 15/8 of its mean; later ones track the grasp frame almost uniformly
+TRACKING_SPEED_MARGIN = (0.6, 0.8, 0.8)
+REACH_TOLERANCE = 1e-3  # pose residual (m, rad) below which a pose counts as reachable
+REGULARISATION = 0.02  # weight pulling the IK toward θ_in and the base-offset guess (1/rad, 1/m)
+
+
+@dataclass(frozen=True)
+class ApproachGuess:
+    params: Array
+    base_offset_m: Array
+    start_delay_s: float
+    q_pregrasp: Array
+    q_tracking: Array  # (len(TRACKING_NODES), 7)
+    clearance_m: float
+
+
+def target_motion(scenario: Scenario, state: TargetState, t_end_s: float) -> TargetMotion:
+    """Accurate torque-free motion of the scenario's target from the observed ``state``."""
+    t = scenario.target
+    return TargetMotion(TargetBody(t.mass_kg, t.inertia_body_kg_m2, t.p_world_com, t.grasp.T_body_grasp),
+                        state, t_end_s)
+
+
+def _ik_residual_function(scenario: Scenario) -> ca.Function:
+    """``(x = [q, b_x, b_z], p_goal, R_goal, S) -> (residual, jacobian)`` of a pose IK with the base frozen.
+
+    Orientation residual ``(R_ee − R_goal) S``: S = I matches the whole orientation, S = [a 0 0] only
+    the free axis a. Smooth, and free of the spurious minima of sin-based errors at large angles.
+    """
+    sc = scenario
+    x = ca.SX.sym("x", sc.robot.n_joints + 2)
+    p_goal = ca.SX.sym("p_goal", 3)
+    R_goal = ca.SX.sym("R_goal", 3, 3)
+    S = ca.SX.sym("S", 3, 3)
+    weight = ca.SX.sym("weight")
+    dp = ca.SX.sym("drift_p", 3)  # base drift since t = 0 (free-floating), held fixed in the IK
+    dR = ca.SX.sym("drift_R", 3, 3)
+    out = fk_function(sc.robot)(x[:-2])
+    p_ee = ca.vertcat(x[-2], 0.0, x[-1]) + dp + ca.mtimes(dR, out[-1])
+    rot = ca.reshape(ca.mtimes(ca.mtimes(dR, out[-2]) - R_goal, S), 9, 1)
+    reg = weight * ca.vertcat(x[:-2] - ca.DM(sc.q_initial), x[-2:] - ca.DM(sc.base_offset_guess_m))
+    r = ca.vertcat(p_ee - p_goal, rot, reg)
+    return ca.Function("pose_ik", [x, p_goal, R_goal, S, weight, dp, dR], [r, ca.jacobian(r, x)])
+
+
+class _PoseIK:
+    """Bounded least-squares IK to one pose from a list of starts; None when unreachable."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.fn = _ik_residual_function(scenario)
+        rob = scenario.robot
+        (bx, bz) = scenario.base_offset_bounds_m
+        self.lo = np.concatenate([rob.q_min + 1e-3, [bx[0], bz[0]]])
+        self.hi = np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]])
+
+    def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array],
+              base_fixed: Array | None = None, drift: tuple[Array, Array] | None = None) -> Array | None:
+        dp, dR = drift if drift is not None else (np.zeros(3), np.eye(3))
+        lo, hi = self.lo.copy(), self.hi.copy()
+        if base_fixed is not None:
+            lo[-2:], hi[-2:] = base_fixed - 1e-9, base_fixed + 1e-9
+
+        def solve_from(x0: Array, weight: float) -> Array:
+            def residual(x: Array) -> Array:
+                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR)[0]).ravel()
+
+            def jacobian(x: Array) -> Array:
+                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR)[1])
+
+            return least_squares(residual, np.clip(x0, lo, hi), jac=jacobian, bounds=(lo, hi), xtol=1e-10,
+                                 ftol=1e-10, max_nfev=200).x
+
+        for x0 in starts:
+            # regularised solve (stays near θ_in), then a polish that removes the regularisation's bias
+            x = solve_from(solve_from(x0, REGULARISATION), 1e-6)
+            if np.linalg.norm(np.asarray(self.fn(x, p_goal, R_goal, S, 0.0, dp, dR)[0]).ravel()[:12]) < REACH_TOLERANCE:
+                return x
+        return None
+
+
+def initial_guesses(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState,
+                    count: int = 3) -> list[ApproachGuess]:
+    """Scan meeting times, solve the pre-grasp and tracking-node IK at each; return the ``count`` best
+    NLP starts (meeting times at least :data:`MIN_SEPARATION_S` apart), best first."""
+    sc = scenario
+    robot = sc.robot
+    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
+    motion = target_motion(sc, state, sc.phases.max_start_delay_s + tf + t2 + 1.0)
+    fk = fk_function(robot)
+    scene = build_scene(sc)
+    ik = _PoseIK(sc)
+    free = sc.target.grasp.free_axis
+    S_pre = np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)])
+    x_home = np.concatenate([sc.q_initial, sc.base_offset_guess_m])
+    x_prev = x_home
+    candidates: list[tuple] = []
+    for tau in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S):
+        R_g, p_g = (a[0] for a in motion.grasp_pose(tau + tf))
+        x_pre = ik.solve(p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2], R_g, S_pre, [x_prev, x_home])
+        if x_pre is None:
+            continue
+        x_prev = x_pre
+        b = x_pre[7:]
+        out = fk(x_pre[:7])
+        R_free = np.eye(3)
+        if free is not None:
+            R_free = axis_angle_to_matrix(free, free_axis_angle(R_g, np.asarray(out[-2]), free))
+        configs, x_node = [x_pre], x_pre
+        for frac in TRACKING_NODES:
+            t_node = frac * t2
+            R_n, p_n = (a[0] for a in motion.grasp_pose(tau + tf + t_node))
+            R_G = R_n @ R_free
+            x_node = ik.solve(p_n - backoff_m(sc.approach.pregrasp_backoff_m, t_node, t2) * R_G[:, 2], R_G,
+                              np.eye(3), [x_node], base_fixed=b)
+            if x_node is None:
+                break
+            configs.append(x_node)
+        if x_node is None:
+            continue
+        node_times = [0.0, *(f * t2 for f in TRACKING_NODES)]
+        speeds = [np.abs(configs[j + 1][:7] - configs[j][:7]).max() / (node_times[j + 1] - node_times[j])
+                  / robot.qd_max.max() for j in range(len(TRACKING_NODES))]
+        clearance = np.inf
+        manip = np.inf
+        for j, x in enumerate(configs):
+            R_t, _ = motion.body_pose(tau + tf + node_times[j])
+            T_target = np.eye(4)
+            T_target[:3, :3] = R_t[0]
+            T_target[:3, 3] = sc.target.p_world_com
+            poses = world_poses(robot, fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]), T_target)
+            clearance = min(clearance, min(d.distance_m for d in scene.distances(poses)))
+            manip = min(manip, manipulability(np.asarray(ik_jacobian(sc, x[:7]))))
+        # the quintic approach path peaks at 15/8 of its mean rate: travel / t_f¹ · 15/8 ≤ the limit
+        travel = float((np.abs(x_pre[:7] - sc.q_initial) / robot.qd_max).max()) * 15 / 8 / tf
+        speed_excess = sum(max(s / m - 1.0, 0.0) for s, m in zip(speeds, TRACKING_SPEED_MARGIN, strict=True))
+        # clearance first (capped: beyond 0.3 m it buys nothing), conditioning, then the rate limits
+        score = min(clearance, 0.3) + 2.0 * min(manip, 0.1) - speed_excess - max(travel - 0.9, 0.0)
+        candidates.append((score, clearance, [c.copy() for c in configs], float(tau)))
+    if not candidates:
+        # nothing reachable: hand the NLP the initial configuration and let it report infeasibility
+        candidates.append((-np.inf, -np.inf, [x_home] * (1 + len(TRACKING_NODES)), 0.0))
+    candidates.sort(key=lambda c: -c[0])
+    chosen: list[tuple] = []
+    for cand in candidates:
+        if all(abs(cand[3] - c[3]) >= MIN_SEPARATION_S for c in chosen):
+            chosen.append(cand)
+        if len(chosen) == count:
+            break
+    guesses = []
+    for _, clearance, configs, tau in chosen:
+        if np.isfinite(clearance):
+            configs = _correct_for_base_drift(sc, ik, motion, configs, tau, S_pre)
+        x = configs[0]
+        times = np.linspace(0.0, tf, 4 * spline.n_vertices)
+        q_path = sc.q_initial + np.outer(smoothstep5(times / tf), x[:7] - sc.q_initial)
+        params = fit_approach_params(spline, sc.q_initial, times, q_path)
+        q_tracking = np.array([c[:7] for c in configs[1:]])
+        guesses.append(ApproachGuess(params, x[7:].copy(), tau, x[:7].copy(), q_tracking, clearance))
+    return guesses
+
+
+DRIFT_ITERATIONS = 3
+
+
+def _correct_for_base_drift(sc: Scenario, ik: _PoseIK, motion: TargetMotion, configs: list[Array], tau: float,
+                            S_pre: Array) -> list[Array]:
+    """Re-solve the IK with the base where the free-floating base actually drifts along the guessed path.
+
+    The scan froze the base; moving ~70 kg of arm through large angles shifts and turns the 800 kg base
+    by centimetres and degrees, which would leave the NLP far from its end constraint. The drift does
+    not depend on the base offset (translation invariance), so a few fixed-point passes converge.
+    """
+    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
+    free = sc.target.grasp.free_axis
+    fk = fk_function(sc.robot)
+    for _ in range(DRIFT_ITERATIONS):
+        drifts = _base_drift(sc, configs)
+        R_g, p_g = (a[0] for a in motion.grasp_pose(tau + tf))
+        x_pre = ik.solve(p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2], R_g, S_pre, [configs[0]],
+                         drift=drifts[0])
+        if x_pre is None:
+            return configs
+        new = [x_pre]
+        R_free = np.eye(3)
+        if free is not None:
+            R_ee = drifts[0][1] @ np.asarray(fk(x_pre[:7])[-2])
+            R_free = axis_angle_to_matrix(free, free_axis_angle(R_g, R_ee, free))
+        for j, frac in enumerate(TRACKING_NODES):
+            t_node = frac * t2
+            R_n, p_n = (a[0] for a in motion.grasp_pose(tau + tf + t_node))
+            R_G = R_n @ R_free
+            x_node = ik.solve(p_n - backoff_m(sc.approach.pregrasp_backoff_m, t_node, t2) * R_G[:, 2], R_G,
+                              np.eye(3), [configs[j + 1]], base_fixed=x_pre[7:], drift=drifts[j + 1])
+            if x_node is None:
+                return configs
+            new.append(x_node)
+        configs = new
+    return configs
+
+
+def _base_drift(sc: Scenario, configs: list[Array]) -> list[tuple[Array, Array]]:
+    """Base displacement and rotation since t = 0 at t_f¹ and at each tracking node (zero momentum).
+
+    Joint path: the quintic blend θ_in → pre-grasp over the approach, then straight lines between the
+    tracking nodes — the same path the NLP's guess and its tracking-node integration use.
+    """
+    ff = _free_floating(sc)
+    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
+    q_pre = configs[0][:7]
+
+    def approach_state(t: float) -> tuple[Array, Array]:
+        s = t / tf
+        ds = 30 * s**2 * (1 - s) ** 2 / tf
+        return sc.q_initial + smoothstep5(s) * (q_pre - sc.q_initial), ds * (q_pre - sc.q_initial)
+
+    x = ff.integrate_base(np.linspace(0.0, tf, 41), approach_state, np.array([0, 0, 0, 1.0, 0, 0, 0]))[-1]
+    out = [(x[:3].copy(), quat_to_matrix(x[3:]))]
+    t_prev, q_prev = 0.0, q_pre
+    for frac, c in zip(TRACKING_NODES, configs[1:], strict=True):
+        t_node = frac * t2
+        qd = (c[:7] - q_prev) / (t_node - t_prev)
+
+        def line(t: float, q0: Array = q_prev, qd: Array = qd) -> tuple[Array, Array]:
+            return q0 + qd * t, qd
+
+        x = ff.integrate_base(np.linspace(0.0, t_node - t_prev, 9), line, x)[-1]
+        out.append((x[:3].copy(), quat_to_matrix(x[3:])))
+        t_prev, q_prev = t_node, c[:7]
+    return out
+
+
+_MODELS: dict[int, FreeFloatingModel] = {}
+
+
+def _free_floating(scenario: Scenario) -> FreeFloatingModel:
+    key = id(scenario.robot)
+    if key not in _MODELS:
+        _MODELS[key] = FreeFloatingModel(scenario.robot)
+    return _MODELS[key]
+
+
+def ik_jacobian(scenario: Scenario, q: Array) -> Array:
+    """Generalized Jacobian J* (base frame) of the scenario's robot at ``q``."""
+    return np.asarray(_free_floating(scenario).gen_jacobian(q)[0])

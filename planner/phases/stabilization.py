@@ -1,0 +1,246 @@
+"""Phase 3, stabilization: an NLP over the compound chaser + target (paper Eq. 10-13, 24).
+
+At the grasp the target becomes rigidly attached to the gripper (its inertia is added to the last
+link); the compound keeps the momentum it had at that instant (h₀ ≠ 0: the target's spin). The joint
+B-spline of Eq. 24 starts at the tracking end state (position, velocity and — our generalisation —
+acceleration, so the joint motion is C² across the join) and brings the joint velocities to zero at
+t_f³ (Eq. 11). Constraints at k via points: joint boxes (Eq. 12), collision with the target now in the
+chain (Eq. 13), and the grasp wrench within its limits: the force and moment the gripper exerts on the
+target, ``F = m_T a_T``, ``M = I_T ω̇_T + ω_T × I_T ω_T + (p_T − p_grasp) × F`` (about the grasp point),
+in the grasp frame — what a wrist force/torque sensor reads. Accelerations come from exact time
+derivatives (``casadi.jtimes``) of the symbolic twists along the state rates. Costs: chaser attitude
+disturbance (Σ‖ω_base‖² at the via points) or peak grasp torque (a slack bounding every component).
+
+The NLP is built per grasp geometry (the compound inertia depends on where the target was grasped);
+an MX graph over small SX Functions builds in about a second.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.bspline import UniformCubicBSpline, stabilization_vertices
+from planner.collision_callback import SceneDistanceCallback, pose_vector
+from planner.freefloating import FreeFloatingModel, base_pose_rate_sym, momentum_map, quat_to_rotation_sym
+from planner.robot import BodyInertia, RobotModel, fk_function
+from planner.scenario import Scenario
+from planner.scene import TARGET_BODY, build_scene
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class GraspState:
+    """The compound's state at the grasp instant (start of stabilization)."""
+
+    q: Array  # rad
+    qd: Array  # rad/s
+    qdd: Array  # rad/s²
+    x_base: Array  # [p_world_base, quat_world_base]
+    h_world: Array  # [P, L_G] of the compound, world (N·s, N·m·s)
+    T_ee_target: Array  # 4×4, target body frame in the ee (grasp) frame
+
+
+@dataclass(frozen=True)
+class StabilizationSolution:
+    params: Array  # Eq. 24 free parameters, planner.bspline layout
+    success: bool
+    status: str
+    iterations: int
+    solve_time_s: float
+    build_time_s: float
+    cost: float
+    peak_torque_nm: float  # at the via points, grasp frame, max |component|
+    min_distance_m: float
+
+
+def compound_robot(scenario: Scenario, T_ee_target: Array) -> RobotModel:
+    """The chaser with the target rigidly attached to its end-effector."""
+    t = scenario.target
+    payload = BodyInertia(t.mass_kg, np.zeros(3), t.inertia_body_kg_m2)
+    return scenario.robot.with_payload(payload, T_ee_target)
+
+
+def wrench_function(scenario: Scenario, compound: RobotModel, T_ee_target: Array) -> ca.Function:
+    """``(x_base, q, qd, qdd, h_world) -> (F_grasp (3), M_grasp (3), ω_base (3))``, all SX-exact.
+
+    F, M: force (N) and moment about the grasp point (N·m) the gripper exerts on the target, in the
+    grasp frame; ω_base: chaser base angular velocity (rad/s, base frame).
+    """
+    n = compound.n_joints
+    x = ca.SX.sym("x_base", 7)
+    q = ca.SX.sym("q", n)
+    qd = ca.SX.sym("qd", n)
+    qdd = ca.SX.sym("qdd", n)
+    h = ca.SX.sym("h_world", 6)
+    mm = momentum_map(compound, q)
+    R_wb = quat_to_rotation_sym(x[3:7])
+    h_base = ca.vertcat(ca.mtimes(R_wb.T, h[:3]), ca.mtimes(R_wb.T, h[3:]))
+    from planner.freefloating import base_twist_sym, generalized_jacobian_sym
+
+    J_star, D = generalized_jacobian_sym(mm)
+    twist_ee_base = ca.mtimes(J_star, qd) + ca.mtimes(D, h_base)
+    R_ee = ca.mtimes(R_wb, mm.R_ee)
+    p_ee = x[:3] + ca.mtimes(R_wb, mm.p_ee)
+    v_ee = ca.mtimes(R_wb, twist_ee_base[:3])
+    w_ee = ca.mtimes(R_wb, twist_ee_base[3:])
+    c = ca.DM(T_ee_target[:3, 3])
+    r_T = ca.mtimes(R_ee, c)  # grasp point → target COM, world
+    v_T = v_ee + ca.cross(w_ee, r_T)
+    state = ca.vertcat(x, q, qd)
+    rate = ca.vertcat(base_pose_rate_sym(mm, x, qd, h), qd, qdd)
+    a_T = ca.jtimes(v_T, state, rate)
+    alpha = ca.jtimes(w_ee, state, rate)
+    t = scenario.target
+    R_T = ca.mtimes(R_ee, ca.DM(T_ee_target[:3, :3]))
+    I_w = ca.mtimes(ca.mtimes(R_T, ca.DM(t.inertia_body_kg_m2)), R_T.T)
+    F = t.mass_kg * a_T
+    M_com = ca.mtimes(I_w, alpha) + ca.cross(w_ee, ca.mtimes(I_w, w_ee))
+    M_grasp = M_com + ca.cross(r_T, F)
+    twist_base = base_twist_sym(mm, qd, h_base)
+    return ca.Function("grasp_wrench", [x, q, qd, qdd, h],
+                       [ca.mtimes(R_ee.T, F), ca.mtimes(R_ee.T, M_grasp), twist_base[3:], R_ee, p_ee],
+                       ["x_base", "q", "qd", "qdd", "h_world"], ["F_grasp", "M_grasp", "omega_base", "R_ee", "p_ee"])
+
+
+class StabilizationProblem:
+    """The stabilization NLP for one grasp geometry; solve() takes the grasp state as parameters."""
+
+    def __init__(self, scenario: Scenario, T_ee_target: Array, torque_limit_nm: float | None = None) -> None:
+        t_build = time.perf_counter()
+        self.scenario = sc = scenario
+        self.T_ee_target = T_ee_target
+        self.compound = compound = compound_robot(sc, T_ee_target)
+        ff = FreeFloatingModel(compound)
+        n = compound.n_joints
+        st = sc.stabilization
+        T = sc.phases.stabilization_s
+        self.spline = UniformCubicBSpline(st.n_vertices, T)
+        k = st.via_points
+        m_steps = k * int(np.ceil(st.rk4_steps / k))
+        self.k = k
+        self.n_params = n * self.spline.n_free_per_joint
+        torque_limit = sc.limits.grasp_torque_max_nm if torque_limit_nm is None else torque_limit_nm
+
+        P = ca.MX.sym("P", self.n_params)
+        par = ca.MX.sym("par", 3 * n + 7 + 6)  # q_in, qd_in, qdd_in, x_base0, h_world
+        q_in, qd_in, a_in = par[:n], par[n:2 * n], par[2 * n:3 * n]
+        x = par[3 * n:3 * n + 7]
+        h = par[3 * n + 7:]
+        V = stabilization_vertices(self.spline, q_in, qd_in, a_in, P)
+        nodes = np.linspace(0.0, T, m_steps + 1)
+        mids = 0.5 * (nodes[:-1] + nodes[1:])
+        Qn, Qdn, Qddn = (self.spline.evaluate(V, nodes, d) for d in (0, 1, 2))
+        Qm, Qdm = (self.spline.evaluate(V, mids, d) for d in (0, 1))
+        dt = T / m_steps
+        xs = [x]
+        for i in range(m_steps):
+            x = ff.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
+                            h, dt)
+            xs.append(x)
+        via_idx = [m_steps // k * (j + 1) for j in range(k)]
+        wrench = wrench_function(sc, compound, T_ee_target)
+        fk = fk_function(compound)
+        T_et = ca.DM(T_ee_target)
+        forces, torques, omegas, poses = [], [], [], []
+        for i in via_idx:
+            F, M, w_b, R_ee, p_ee = wrench(xs[i], Qn[i, :].T, Qdn[i, :].T, Qddn[i, :].T, h)
+            forces.append(F)
+            torques.append(M)
+            omegas.append(w_b)
+            R_wb = quat_to_rotation_sym(xs[i][3:7])
+            out = fk(Qn[i, :].T)
+            blocks = [pose_vector(ca.mtimes(R_wb, out[2 * b]), xs[i][:3] + ca.mtimes(R_wb, out[2 * b + 1]))
+                      for b in range(len(compound.body_names))]
+            blocks.append(pose_vector(ca.mtimes(R_ee, T_et[:3, :3]), p_ee + ca.mtimes(R_ee, T_et[:3, 3])))
+            poses.append(ca.vertcat(*blocks))
+        self.scene = build_scene(sc)
+        self.distance_cb = SceneDistanceCallback("stabilization_distance", self.scene,
+                                                 [*compound.body_names, TARGET_BODY])
+        dists = [self.distance_cb(pz) for pz in poses]
+        q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx])
+        qd_box = ca.vertcat(*[Qdn[i, :].T for i in via_idx])
+        M_all = ca.vertcat(*torques)
+        F_all = ca.vertcat(*forces)
+        att = sum(ca.sumsqr(w) for w in omegas) / k
+        c = sc.costs
+        w_extra, lbw_extra, ubw_extra = [], [], []
+        cost = c.attitude_disturbance * att
+        g = [q_box, qd_box, *dists, M_all, F_all]
+        margin = sc.limits.collision_margin_m
+        n_d = len(self.scene.pairs)
+        tl = torque_limit if np.isfinite(torque_limit) else np.inf
+        fl = sc.limits.grasp_force_max_n if np.isfinite(sc.limits.grasp_force_max_n) else np.inf
+        lbg = [np.tile(compound.q_min, k), np.tile(-compound.qd_max, k), np.full(k * n_d, margin),
+               np.full(3 * k, -tl), np.full(3 * k, -fl)]
+        ubg = [np.tile(compound.q_max, k), np.tile(compound.qd_max, k), np.full(k * n_d, np.inf),
+               np.full(3 * k, tl), np.full(3 * k, fl)]
+        if c.peak_wrench > 0:
+            s = ca.MX.sym("s_torque")
+            w_extra.append(s)
+            lbw_extra.append(0.0)
+            ubw_extra.append(np.inf)
+            g += [s - M_all, s + M_all]
+            lbg += [np.zeros(3 * k), np.zeros(3 * k)]
+            ubg += [np.full(3 * k, np.inf), np.full(3 * k, np.inf)]
+            cost = cost + c.peak_wrench * s
+        # a small jerk-like regulariser keeps a feasibility solve from returning wild interior vertices
+        cost = cost + 1e-6 * ca.sumsqr(P)
+        self.n_extra = len(w_extra)
+        self.lbg, self.ubg = np.concatenate(lbg), np.concatenate(ubg)
+        self.lbw = np.concatenate([np.full(self.n_params, -np.inf), lbw_extra])
+        self.ubw = np.concatenate([np.full(self.n_params, np.inf), ubw_extra])
+        self.n_box = 2 * k * n
+        self.n_dist = k * n_d
+        self.outputs = ca.Function("stabilization_outputs", [P, par], [M_all, F_all, ca.vertcat(*dists)])
+        nlp = {"x": ca.vertcat(P, *w_extra), "p": par, "f": cost, "g": ca.vertcat(*g)}
+        self.solver = ca.nlpsol("stabilization", "ipopt", nlp, {
+            "ipopt.hessian_approximation": "limited-memory",
+            "ipopt.max_iter": sc.solver.max_iter,
+            "ipopt.max_wall_time": sc.solver.max_wall_s,
+            "ipopt.tol": sc.solver.tol,
+            "ipopt.acceptable_tol": 1e-4,
+            "ipopt.constr_viol_tol": 1e-7,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "print_time": False,
+        })
+        self.build_time_s = time.perf_counter() - t_build
+
+    def initial_params(self, grasp: GraspState) -> Array:
+        """Eq. 24 parameters of a smooth deceleration: q̇(t) = q̇_in (1 − smoothstep(t/T))."""
+        T = self.spline.duration_s
+        times = np.linspace(0.0, T, 4 * self.spline.n_vertices)
+        s = times / T
+        # ∫ (1 − smoothstep5) ds, closed form
+        integral = s - (2.5 * s**4 - 3 * s**5 + s**6)
+        q_path = grasp.q + np.outer(integral * T, grasp.qd)
+        W = self.spline.weights(times)
+        m = self.spline.n_free_per_joint
+        n = len(grasp.q)
+        offset = stabilization_vertices(self.spline, grasp.q, grasp.qd, grasp.qdd, np.zeros(m * n))
+        G = np.stack([stabilization_vertices(self.spline, np.zeros(1), np.zeros(1), np.zeros(1), np.eye(m)[j]).ravel()
+                      for j in range(m)], axis=1)
+        P, *_ = np.linalg.lstsq(W @ G, q_path - W @ offset, rcond=None)
+        return P.reshape(-1)
+
+    def solve(self, grasp: GraspState, warm_params: Array | None = None) -> StabilizationSolution:
+        par = np.concatenate([grasp.q, grasp.qd, grasp.qdd, grasp.x_base, grasp.h_world])
+        w0 = self.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
+        if self.n_extra:
+            M0, _, _ = self.outputs(w0, par)
+            w0 = np.concatenate([w0, [float(np.abs(np.asarray(M0)).max())]])
+        t0 = time.perf_counter()
+        sol = self.solver(x0=w0, p=par, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=self.ubg)
+        elapsed = time.perf_counter() - t0
+        stats = self.solver.stats()
+        P = np.asarray(sol["x"]).ravel()[: self.n_params]
+        M, _, d = (np.asarray(a).ravel() for a in self.outputs(P, par))
+        return StabilizationSolution(P, bool(stats["success"]), str(stats["return_status"]), int(stats["iter_count"]),
+                                     elapsed, self.build_time_s, float(sol["f"]), float(np.abs(M).max()),
+                                     float(d.min()))

@@ -1,0 +1,191 @@
+"""Phase 2, tracking and grasping: generalized-Jacobian pseudo-inverse IK (paper Eq. 7-9).
+
+``q̇ = J*⁺ (ẋ_des + K σ_K(t) e) + (I − J*⁺ J*) k_n σ_n(t) ∇w(q)``, with J* the generalized Jacobian of the
+free-floating chaser (zero momentum), e the pose error, w the manipulability (Eq. 14) whose gradient
+acts in the null space. The desired end-effector pose blends smoothly from the pre-grasp pose, where the
+approach left the arm at rest, to the moving grasp frame while the back-off distance closes to zero:
+
+    p_des = (1 − s) p₀ + s (p_G − d(t) z_G),   R_des = R₀ exp(s log(R₀ᵀ R_G)),   d(t) = d₀ (1 − s_d(t))
+
+s, s_d, σ_K, σ_n are quintic smoothsteps (zero rate and acceleration at their ends), so the joint
+velocity and acceleration start at the approach's zeros and the grasp happens with the gripper at rest
+relative to the grasp frame (impact-free, paper §3). ẋ_des comes from central differences of the
+desired pose (step 1e-5 s, error ~1e-10 m/s), the closed loop removes the rest. The joint and base
+states are integrated by RK4 at the scenario's step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from scipy.interpolate import CubicHermiteSpline
+
+from planner.costs import manipulability_sym
+from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
+from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend, gain_ramp
+from planner.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.scenario import Scenario
+from planner.target import TargetMotion
+
+Array = NDArray[np.float64]
+
+FD_STEP_S = 1e-5
+
+
+@dataclass(frozen=True)
+class TrackingResult:
+    """Dense tracking trajectory; times are absolute (s since the observation)."""
+
+    t: Array
+    q: Array  # (n, 7) rad
+    qd: Array  # (n, 7) rad/s
+    qdd_end: Array  # (7,) rad/s², joint acceleration at the grasp instant
+    x_base: Array  # (n, 7) [p_world_base, quat_world_base]
+    free_axis_angle_rad: float
+    position_error_m: float  # at the grasp instant
+    orientation_error_rad: float
+    relative_velocity_m_s: float
+    relative_angular_velocity_rad_s: float
+
+
+def free_axis_angle(R_world_grasp: Array, R_world_ee: Array, axis: Array | None) -> float:
+    """Angle ψ (rad) about the grasp frame's free axis that best aligns the grasp frame with the ee."""
+    if axis is None:
+        return 0.0
+    M = R_world_grasp.T @ R_world_ee
+    e = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    e = e - np.dot(e, axis) * axis
+    e /= np.linalg.norm(e)
+    Me = M @ e
+    return float(np.arctan2(np.dot(axis, np.cross(e, Me)), np.dot(e, Me)))
+
+
+class TrackingController:
+    """The IK law of the module docstring for one scenario (CasADi Functions built once)."""
+
+    def __init__(self, scenario: Scenario, ff: FreeFloatingModel) -> None:
+        self.scenario = scenario
+        self.ff = ff
+        n = scenario.robot.n_joints
+        q = ca.SX.sym("q", n)
+        x = ca.SX.sym("x_base", 7)
+        J_star, _, R_ee, p_ee = ff.gen_jacobian(q)
+        R_wb = quat_to_rotation_sym(x[3:7])
+        J_world = ca.vertcat(ca.mtimes(R_wb, J_star[:3, :]), ca.mtimes(R_wb, J_star[3:, :]))
+        w = manipulability_sym(J_star)
+        self.kinematics = ca.Function(
+            "tracking_kinematics", [q, x],
+            [J_world, ca.mtimes(R_wb, R_ee), x[:3] + ca.mtimes(R_wb, p_ee), ca.gradient(w, q)])
+
+    def simulate(self, motion: TargetMotion, t_start_s: float, q0: Array, x_base0: Array,
+                 q_nodes: Array | None = None) -> TrackingResult:
+        """Run the tracking phase from the approach end state (absolute start time ``t_start_s``).
+
+        ``q_nodes`` (len(TRACKING_NODES), 7): the approach NLP's configurations at the tracking nodes; the
+        null-space motion is pulled toward a C¹ interpolation of them (a posture potential, Eq. 7), so
+        the IK follows the path whose limits and clearances the NLP checked.
+        """
+        sc = self.scenario
+        T = sc.phases.tracking_s
+        steps = int(np.ceil(T / sc.tracking.step_s))
+        dt = T / steps
+        axis = sc.target.grasp.free_axis
+        R_ee0, p_ee0 = (np.asarray(a) for a in self.kinematics(q0, x_base0)[1:3])
+        p_ee0 = p_ee0.ravel()
+        R_g0, _ = (a[0] for a in motion.grasp_pose(t_start_s))
+        psi = free_axis_angle(R_g0, R_ee0, axis)
+        R_free = np.eye(3) if axis is None else axis_angle_to_matrix(axis, psi)
+        d0 = sc.approach.pregrasp_backoff_m
+        K = sc.tracking.pose_gain_per_s
+        kn = sc.tracking.nullspace_gain
+
+        def desired(t: float) -> tuple[Array, Array]:
+            R_g, p_g = (a[0] for a in motion.grasp_pose(t_start_s + t))
+            R_G = R_g @ R_free
+            d = backoff_m(d0, t, T)
+            s = blend(t, T)
+            p = (1 - s) * p_ee0 + s * (p_g - d * R_G[:, 2])
+            R = R_ee0 @ pin.exp3(s * pin.log3(R_ee0.T @ R_G))
+            return R, p
+
+        def desired_twist(t: float) -> Array:
+            R_p, p_p = desired(t + FD_STEP_S)
+            R_m, p_m = desired(max(t - FD_STEP_S, 0.0))
+            h = FD_STEP_S + min(t, FD_STEP_S)
+            return np.concatenate([(p_p - p_m) / h, pin.log3(R_p @ R_m.T) / h])
+
+        q_ref = None
+        if q_nodes is not None:
+            node_t = np.array([0.0, *(f * T for f in TRACKING_NODES)])
+            node_q = np.vstack([q0, q_nodes])
+            slopes = np.gradient(node_q, node_t, axis=0)
+            slopes[0] = 0.0  # the approach ends at rest
+            q_ref = CubicHermiteSpline(node_t, node_q, slopes)
+            q_ref_d = q_ref.derivative()
+
+        def rates(t: float, q: Array, x: Array) -> tuple[Array, Array]:
+            J, R_ee, p_ee, grad_w = (np.asarray(a) for a in self.kinematics(q, x))
+            R_d, p_d = desired(t)
+            e = np.concatenate([p_d - p_ee.ravel(), pin.log3(R_d @ R_ee.T)])
+            ramp = gain_ramp(t, T)
+            J_pinv = np.linalg.pinv(J)
+            qd = J_pinv @ (desired_twist(t) + K * ramp * e)
+            null = kn * grad_w.ravel()
+            if q_ref is not None:
+                null = null + q_ref_d(t) + K * (q_ref(t) - q)
+            qd += (np.eye(len(q)) - J_pinv @ J) @ (ramp * null)
+            xd = _base_rate(self.ff, q, qd, x)
+            return qd, xd
+
+        ts = t_start_s + dt * np.arange(steps + 1)
+        qs = np.empty((steps + 1, len(q0)))
+        qds = np.empty_like(qs)
+        xs = np.empty((steps + 1, 7))
+        qs[0], xs[0] = q0, x_base0
+        k1q, k1x = rates(0.0, q0, x_base0)
+        qds[0] = k1q
+        for i in range(steps):
+            t = i * dt
+            k2q, k2x = rates(t + dt / 2, qs[i] + dt / 2 * k1q, xs[i] + dt / 2 * k1x)
+            k3q, k3x = rates(t + dt / 2, qs[i] + dt / 2 * k2q, xs[i] + dt / 2 * k2x)
+            k4q, k4x = rates(t + dt, qs[i] + dt * k3q, xs[i] + dt * k3x)
+            qs[i + 1] = qs[i] + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
+            xn = xs[i] + dt / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+            xn[3:] /= np.linalg.norm(xn[3:])
+            xs[i + 1] = xn
+            k1q, k1x = rates(t + dt, qs[i + 1], xs[i + 1])
+            qds[i + 1] = k1q
+        # joint acceleration at the grasp instant: derivative of q̇ along the closed-loop flow
+        eps = 1e-4
+        qd_back, _ = rates(T - eps, qs[-1] - eps * qds[-1], xs[-1] - eps * k1x)
+        qdd_end = (qds[-1] - qd_back) / eps
+        # relative pose and twist at the grasp instant
+        _, R_ee, p_ee, _ = (np.asarray(a) for a in self.kinematics(qs[-1], xs[-1]))
+        R_g, p_g = (a[0] for a in motion.grasp_pose(ts[-1]))
+        v_g, w_g = (a[0] for a in motion.grasp_twist(ts[-1]))
+        J = np.asarray(self.kinematics(qs[-1], xs[-1])[0])
+        twist_ee = J @ qds[-1]
+        # the grasp point's velocity at the ee origin (rigid target): v_g + ω × (p_ee − p_g)
+        v_rel = twist_ee[:3] - (v_g + np.cross(w_g, p_ee.ravel() - p_g))
+        return TrackingResult(
+            t=ts, q=qs, qd=qds, qdd_end=qdd_end, x_base=xs, free_axis_angle_rad=psi,
+            position_error_m=float(np.linalg.norm(p_ee.ravel() - p_g)),
+            orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ R_free).T @ R_ee))),
+            relative_velocity_m_s=float(np.linalg.norm(v_rel)),
+            relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
+        )
+
+
+def _base_rate(ff: FreeFloatingModel, q: Array, qd: Array, x: Array) -> Array:
+    """Rate of the base pose ``[p, quat]`` under zero momentum (numeric)."""
+    R = quat_to_matrix(x[3:])
+    nu = np.asarray(ff.base_twist(q, qd, np.zeros(6))).ravel()
+    w = nu[3:]
+    qw, qx, qy, qz = x[3:]
+    quat_dot = 0.5 * np.array([-qx * w[0] - qy * w[1] - qz * w[2], qw * w[0] + qy * w[2] - qz * w[1],
+                               qw * w[1] - qx * w[2] + qz * w[0], qw * w[2] + qx * w[1] - qy * w[0]])
+    return np.concatenate([R @ nu[:3], quat_dot])

@@ -1,0 +1,183 @@
+"""``plan_grasp``: the three phases chained into one grasp plan (paper §4; DESIGN §5).
+
+approach NLP → dense re-simulation of the approach → tracking IK → compound momentum at the grasp →
+stabilization NLP → dense re-simulation of the stabilization. The approach NLP carries a proxy of the
+tracking constraints (configurations at the tracking nodes); if the real IK then exceeds a joint-rate
+limit by a factor f, the approach is re-solved with its tracking-rate bounds tightened by 1/f
+(warm-started), up to :data:`TIGHTENING_ROUNDS` times. Times are seconds since the observation.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.bspline import UniformCubicBSpline, approach_vertices, stabilization_vertices
+from planner.freefloating import FreeFloatingModel
+from planner.phases.approach import ApproachProblem, ApproachSolution
+from planner.phases.approach_guess import target_motion
+from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
+from planner.phases.tracking import TrackingController, TrackingResult
+from planner.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.scenario import Scenario
+from planner.target import TargetMotion, TargetState
+
+Array = NDArray[np.float64]
+
+SAMPLE_STEP_S = 0.01  # dense re-simulation step of the approach and stabilization (s)
+TIGHTENING_ROUNDS = 2
+
+
+@dataclass
+class GraspPlan:
+    """One planned grasp: decision parameters, dense trajectory, metrics, solver statistics (SI)."""
+
+    scenario: Scenario
+    target_state: TargetState
+    approach: ApproachSolution
+    tracking: TrackingResult
+    stabilization: StabilizationSolution
+    grasp: GraspState
+    T_body_grasp_used: Array  # grasp frame in the target body frame, free-axis angle applied
+    phases: dict[str, tuple[float, float]]
+    t: Array  # dense samples (s since the observation), approach start to stabilization end
+    q: Array
+    qd: Array
+    x_base: Array  # [p_world_base, quat_world_base]
+    phase_index: Array  # 0 approach, 1 tracking, 2 stabilization
+    timings_s: dict[str, float] = field(default_factory=dict)
+    solver_ok: bool = True
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def t_grasp(self) -> float:
+        return self.phases["tracking"][1]
+
+
+class Planner:
+    """The symbolic problems of one scenario, built once; :meth:`plan` solves one target state."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        t0 = time.perf_counter()
+        self.scenario = scenario
+        self.ff = FreeFloatingModel(scenario.robot)
+        self.approach = ApproachProblem(scenario, self.ff)
+        self.tracking = TrackingController(scenario, self.ff)
+        self._stabilization: dict[float, StabilizationProblem] = {}
+        self.build_time_s = time.perf_counter() - t0
+
+    def stabilization_problem(self, T_ee_target: Array, psi: float) -> StabilizationProblem:
+        key = round(psi, 9)
+        if key not in self._stabilization:
+            self._stabilization = {key: StabilizationProblem(self.scenario, T_ee_target)}
+        return self._stabilization[key]
+
+    def plan(self, state: TargetState, warm_start: GraspPlan | None = None) -> GraspPlan:
+        """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs."""
+        sc = self.scenario
+        timings: dict[str, float] = {}
+        t_start = time.perf_counter()
+        app = self.approach.solve(state, warm_start.approach if warm_start is not None else None)
+        tf1, tf2, tf3 = sc.phases.approach_s, sc.phases.tracking_s, sc.phases.stabilization_s
+        motion = target_motion(sc, state, sc.phases.max_start_delay_s + tf1 + tf2 + tf3 + 1.0)
+        notes: list[str] = []
+        for round_ in range(TIGHTENING_ROUNDS + 1):
+            t_app, q_app, qd_app, x_app = self._approach_samples(app)
+            tr = self.tracking.simulate(motion, app.start_delay_s + tf1, q_app[-1], x_app[-1], app.q_tracking)
+            ratio = float((np.abs(tr.qd) / sc.robot.qd_max).max())
+            if ratio <= 1.0 or round_ == TIGHTENING_ROUNDS or not app.success:
+                break
+            scale = self.approach.tracking_speed_scale / ratio * 0.97
+            notes.append(f"tracking joint rate {ratio:.3f}× the limit: approach re-solved with its tracking-rate "
+                         f"bounds scaled by {scale:.3f}")
+            retry = self.approach.solve(state, app, tracking_speed_scale=scale)
+            if not retry.success:
+                break
+            app = replace_timing(retry, app)
+        timings["approach_s"] = app.solve_time_s
+        timings["tracking_s"] = 0.0
+        t_tr = time.perf_counter()
+        grasp, T_body_grasp_used = self._grasp_state(tr, motion)
+        timings["tracking_s"] = time.perf_counter() - t_tr
+        stab_problem = self.stabilization_problem(grasp.T_ee_target, tr.free_axis_angle_rad)
+        stab = stab_problem.solve(grasp, warm_start.stabilization.params if warm_start is not None else None)
+        timings["stabilization_s"] = stab.solve_time_s + stab.build_time_s
+        t_st, q_st, qd_st, x_st = self._stabilization_samples(stab_problem, stab, grasp)
+        t0 = app.start_delay_s
+        phases = {"approach": (t0, t0 + tf1), "tracking": (t0 + tf1, t0 + tf1 + tf2),
+                  "stabilization": (t0 + tf1 + tf2, t0 + tf1 + tf2 + tf3)}
+        t = np.concatenate([t_app + t0, tr.t[1:], t_st[1:] + phases["stabilization"][0]])
+        q = np.vstack([q_app, tr.q[1:], q_st[1:]])
+        qd = np.vstack([qd_app, tr.qd[1:], qd_st[1:]])
+        x = np.vstack([x_app, tr.x_base[1:], x_st[1:]])
+        phase_index = np.concatenate([np.zeros(len(t_app)), np.ones(len(tr.t) - 1), np.full(len(t_st) - 1, 2)])
+        timings["total_s"] = time.perf_counter() - t_start
+        return GraspPlan(sc, state, app, tr, stab, grasp, T_body_grasp_used, phases, t, q, qd, x,
+                         phase_index.astype(int), timings, app.success and stab.success, notes)
+
+    # ---- dense re-simulation -----------------------------------------------------------------
+
+    def _approach_samples(self, app: ApproachSolution) -> tuple[Array, Array, Array, Array]:
+        sc = self.scenario
+        spline = self.approach.spline
+        V = approach_vertices(spline, sc.q_initial, app.params)
+        return _spline_samples(spline, V, self.ff, np.array([app.base_offset_m[0], 0.0, app.base_offset_m[1],
+                                                            1.0, 0.0, 0.0, 0.0]), np.zeros(6))
+
+    def _grasp_state(self, tr: TrackingResult, motion: TargetMotion) -> tuple[GraspState, Array]:
+        """Compound state at the grasp, its momentum, and the grasp frame used (free-axis angle applied)."""
+        sc = self.scenario
+        T_bg = sc.target.grasp.T_body_grasp.copy()
+        axis = sc.target.grasp.free_axis
+        if axis is not None:
+            T_bg[:3, :3] = T_bg[:3, :3] @ axis_angle_to_matrix(axis, tr.free_axis_angle_rad)
+        T_ee_target = np.linalg.inv(T_bg)  # the ee frame coincides with the grasp frame at the grasp
+        from planner.phases.stabilization import compound_robot
+
+        compound = compound_robot(sc, T_ee_target)
+        ff_c = FreeFloatingModel(compound)
+        q, qd, x = tr.q[-1], tr.qd[-1], tr.x_base[-1]
+        R = quat_to_matrix(x[3:])
+        nu = np.asarray(self.ff.base_twist(q, qd, np.zeros(6))).ravel()  # the chaser's own base twist
+        A_b, A_m, _ = (np.asarray(a) for a in ff_c.momentum(q))
+        h_base = A_b @ nu + A_m @ qd
+        h_world = np.concatenate([R @ h_base[:3], R @ h_base[3:]])
+        return GraspState(q, qd, tr.qdd_end, x, h_world, T_ee_target), T_bg
+
+    def _stabilization_samples(self, problem: StabilizationProblem, stab: StabilizationSolution,
+                               grasp: GraspState) -> tuple[Array, Array, Array, Array]:
+        V = stabilization_vertices(problem.spline, grasp.q, grasp.qd, grasp.qdd, stab.params)
+        ff_c = FreeFloatingModel(problem.compound)
+        return _spline_samples(problem.spline, V, ff_c, grasp.x_base, grasp.h_world)
+
+
+def replace_timing(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:
+    """The re-solved approach, with solve time and iterations accumulated over both solves."""
+    from dataclasses import replace
+
+    return replace(new, solve_time_s=new.solve_time_s + old.solve_time_s, iterations=new.iterations + old.iterations)
+
+
+def _spline_samples(spline: UniformCubicBSpline, V: Array, ff: FreeFloatingModel, x0: Array,
+                    h_world: Array) -> tuple[Array, Array, Array, Array]:
+    """Joint positions/velocities and the RK4-integrated base pose at :data:`SAMPLE_STEP_S`."""
+    T = spline.duration_s
+    n = int(np.ceil(T / SAMPLE_STEP_S))
+    t = np.linspace(0.0, T, n + 1)
+    q = spline.evaluate(V, t)
+    qd = spline.evaluate(V, t, 1)
+
+    def joint_state(tt: float) -> tuple[Array, Array]:
+        tt = min(max(tt, 0.0), T)
+        return spline.evaluate(V, [tt])[0], spline.evaluate(V, [tt], 1)[0]
+
+    x = ff.integrate_base(t, joint_state, x0, h_world)
+    return t, q, qd, x
+
+
+def plan_grasp(scenario: Scenario, target_state: TargetState, warm_start: GraspPlan | None = None) -> GraspPlan:
+    """Plan one grasp (builds the scenario's problems; reuse a :class:`Planner` for many states)."""
+    return Planner(scenario).plan(target_state, warm_start)
