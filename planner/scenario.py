@@ -122,7 +122,10 @@ def _read_toml(path: Path) -> tuple[dict[str, Any], str]:
     src = str(path)
     if not path.is_file():
         raise ConfigError(src, "", "file not found")
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(src, "", "not valid TOML (not UTF-8 text)") from None
     try:
         return tomllib.loads(text), text
     except tomllib.TOMLDecodeError as exc:
@@ -132,11 +135,13 @@ def _read_toml(path: Path) -> tuple[dict[str, Any], str]:
 def _inertia_matrix(t: _Table, key: str) -> Array:
     value = t._get(key, _MISSING)
     if isinstance(value, list) and len(value) == 3 and all(isinstance(v, list) for v in value):
-        rows = [np.asarray(r, dtype=float) for r in value if len(r) == 3]
-        if len(rows) != 3:
-            raise t.error(key, "expected 3 principal moments or a 3×3 matrix")
+        if not all(len(r) == 3 and all(isinstance(x, int | float) and not isinstance(x, bool) for x in r)
+                   for r in value):
+            raise t.error(key, f"expected 3 principal moments or a 3×3 matrix of numbers, got {value!r}")
+        rows = [np.asarray(r, dtype=float) for r in value]
         matrix = np.vstack(rows)
-    elif isinstance(value, list) and len(value) == 3 and all(isinstance(v, int | float) for v in value):
+    elif isinstance(value, list) and len(value) == 3 and all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in value):
         matrix = np.diag(np.asarray(value, dtype=float))
     else:
         raise t.error(key, f"expected 3 principal moments or a 3×3 matrix, got {value!r}")
@@ -347,8 +352,18 @@ def load_scenario(path: str | Path) -> Scenario:
     base_dir = path.parent
     urdf = t.string("robot_urdf")
     ee_frame = t.string("ee_frame", default="grasp_frame")
-    robot = load_robot(base_dir / urdf, ee_frame=ee_frame)
-    target = load_target(base_dir / t.string("target"))
+    if not (base_dir / urdf).is_file():
+        raise t.error("robot_urdf", f"file not found: {base_dir / urdf}")
+    try:
+        robot = load_robot(base_dir / urdf, ee_frame=ee_frame)
+    except ConfigError as exc:
+        if exc.field != "ee_frame":
+            raise
+        raise t.error("ee_frame", f"{exc.problem} ({exc.source})") from None
+    target_file = t.string("target")
+    if not (base_dir / target_file).is_file():
+        raise t.error("target", f"file not found: {base_dir / target_file}")
+    target = load_target(base_dir / target_file)
 
     s = t.table("target_state")
     quat = s.vector("attitude_wxyz", 4)

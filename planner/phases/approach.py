@@ -28,6 +28,7 @@ from planner.bspline import UniformCubicBSpline, approach_vertices
 from planner.collision_callback import SceneDistanceCallback, pose_vector
 from planner.costs import manipulability_sym
 from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
+from planner.phases import constraint_backoff
 from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, initial_guesses
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m
 from planner.robot import fk_function
@@ -40,6 +41,7 @@ Array = NDArray[np.float64]
 
 TARGET_STEPS_PER_S = 1.0  # RK4 steps of the symbolic target prediction per second of delay
 TRACKING_RK4_STEPS = 3  # base-drift RK4 steps per tracking-node interval
+STOPPING_FRACTION = 0.15  # the stabilization guess stops the joints within this fraction of t_f³
 
 
 @dataclass(frozen=True)
@@ -197,7 +199,11 @@ class ApproachProblem:
             tr_err += [p_ee_j - (p_G - d * R_G[:, 2]), _vee_skew(ca.mtimes(R_G.T, R_ee_j))]
             tr_poses.append(poses_j)
         # joint boxes at the via points (Eq. 17-18) and at the tracking nodes (Eq. 8)
-        q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx], *Q_tr)
+        # stopping room for the stabilization: decelerating from the grasp rate over STOPPING_FRACTION·t_f³
+        # moves a joint by q̇·STOPPING_FRACTION·t_f³/2, which must stay inside the limits
+        qd_grasp = (Q_tr[-1] - Q_tr[-2]) / (tr_times[-1] - tr_times[-2])
+        q_stop = Q_tr[-1] + qd_grasp * (STOPPING_FRACTION * sc.phases.stabilization_s / 2)
+        q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx], *Q_tr, q_stop)
         qd_box = ca.vertcat(*[Qdn[i, :].T for i in via_idx])
         q_steps = [q_end, *Q_tr]
         qd_steps = ca.vertcat(*[(q_steps[j + 1] - q_steps[j]) / (tr_times[j] - (tr_times[j - 1] if j else 0.0))
@@ -217,15 +223,18 @@ class ApproachProblem:
         cost = c.approach_energy * energy - c.manipulability * manip
         rob = self.robot
         n_d = len(self.scene.pairs)
-        n_q_box = k + n_tr
+        n_q_box = k + n_tr + 1
         margin = sc.limits.collision_margin_m
         tr_err_v = ca.vertcat(*tr_err)
         g_parts = [pos_err, rot_err, tr_err_v, q_box, qd_box, qd_steps, *dists]
-        lbg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(rob.q_min, n_q_box),
-               np.tile(-rob.qd_max, k), np.concatenate([-f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
-               np.full(len(all_poses) * n_d, margin)]
-        ubg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(rob.q_max, n_q_box),
-               np.tile(rob.qd_max, k), np.concatenate([f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
+        bo = constraint_backoff
+        q_lo, q_hi = rob.q_min + bo.JOINT_POSITION_RAD, rob.q_max - bo.JOINT_POSITION_RAD
+        qd_lim = bo.JOINT_VELOCITY_FRACTION * rob.qd_max
+        lbg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_lo, n_q_box),
+               np.tile(-qd_lim, k), np.concatenate([-f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
+               np.full(len(all_poses) * n_d, margin + bo.COLLISION_M)]
+        ubg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_hi, n_q_box),
+               np.tile(qd_lim, k), np.concatenate([f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
                np.full(len(all_poses) * n_d, np.inf)]
         self.n_before_dist = sum(part.numel() for part in g_parts[:6])
         start = sum(part.numel() for part in g_parts[:5])
@@ -290,7 +299,7 @@ class ApproachProblem:
             if attempt == len(starts):
                 starts += [np.concatenate([g.params, g.base_offset_m, [g.start_delay_s], g.q_tracking.ravel()])
                            for g in initial_guesses(self.scenario, self.spline, state, max_starts)]
-            if attempt >= len(starts):
+            if attempt >= len(starts) or (attempt > 0 and time.perf_counter() - t0 > self.scenario.solver.max_wall_s):
                 break
             result = self._solve_once(state, starts[attempt])
             iterations += result.iterations

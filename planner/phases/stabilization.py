@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from planner.bspline import UniformCubicBSpline, stabilization_vertices
 from planner.collision_callback import SceneDistanceCallback, pose_vector
 from planner.freefloating import FreeFloatingModel, base_pose_rate_sym, momentum_map, quat_to_rotation_sym
+from planner.phases import constraint_backoff
 from planner.robot import BodyInertia, RobotModel, fk_function
 from planner.scenario import Scenario
 from planner.scene import TARGET_BODY, build_scene
@@ -176,9 +177,12 @@ class StabilizationProblem:
         n_d = len(self.scene.pairs)
         tl = torque_limit if np.isfinite(torque_limit) else np.inf
         fl = sc.limits.grasp_force_max_n if np.isfinite(sc.limits.grasp_force_max_n) else np.inf
-        lbg = [np.tile(compound.q_min, k), np.tile(-compound.qd_max, k), np.full(k * n_d, margin),
-               np.full(3 * k, -tl), np.full(3 * k, -fl)]
-        ubg = [np.tile(compound.q_max, k), np.tile(compound.qd_max, k), np.full(k * n_d, np.inf),
+        bo = constraint_backoff
+        qd_lim = bo.JOINT_VELOCITY_FRACTION * compound.qd_max
+        tl, fl = bo.WRENCH_FRACTION * tl, bo.WRENCH_FRACTION * fl
+        lbg = [np.tile(compound.q_min + bo.JOINT_POSITION_RAD, k), np.tile(-qd_lim, k),
+               np.full(k * n_d, margin + bo.COLLISION_M), np.full(3 * k, -tl), np.full(3 * k, -fl)]
+        ubg = [np.tile(compound.q_max - bo.JOINT_POSITION_RAD, k), np.tile(qd_lim, k), np.full(k * n_d, np.inf),
                np.full(3 * k, tl), np.full(3 * k, fl)]
         if c.peak_wrench > 0:
             s = ca.MX.sym("s_torque")
@@ -213,13 +217,22 @@ class StabilizationProblem:
         self.build_time_s = time.perf_counter() - t_build
 
     def initial_params(self, grasp: GraspState) -> Array:
-        """Eq. 24 parameters of a smooth deceleration: q̇(t) = q̇_in (1 − smoothstep(t/T))."""
+        """Eq. 24 parameters of a smooth deceleration ``q̇(t) = q̇_in (1 − smoothstep(t/T_d))``.
+
+        T_d ≤ t_f³ is short enough that no joint travels past 80 % of its remaining room to the limit
+        (each joint moves q̇_in·T_d/2 while decelerating); the NLP then reshapes the profile.
+        """
         T = self.spline.duration_s
+        rob = self.compound
+        room = np.where(grasp.qd > 0, rob.q_max - grasp.q, grasp.q - rob.q_min)
+        with np.errstate(divide="ignore"):
+            limits = np.where(np.abs(grasp.qd) > 1e-9, 2 * 0.8 * np.maximum(room, 0.0) / np.abs(grasp.qd), np.inf)
+        T_d = float(np.clip(limits.min(), 0.2 * T, T))
         times = np.linspace(0.0, T, 4 * self.spline.n_vertices)
-        s = times / T
-        # ∫ (1 − smoothstep5) ds, closed form
+        s = np.minimum(times / T_d, 1.0)
+        # ∫₀ˢ (1 − smoothstep5) ds, closed form, times T_d
         integral = s - (2.5 * s**4 - 3 * s**5 + s**6)
-        q_path = grasp.q + np.outer(integral * T, grasp.qd)
+        q_path = grasp.q + np.outer(integral * T_d, grasp.qd)
         W = self.spline.weights(times)
         m = self.spline.n_free_per_joint
         n = len(grasp.q)

@@ -1,0 +1,137 @@
+"""Plan export: the ``lutgen.plan/1`` JSON object and its flat CSV twin (DESIGN §7).
+
+All quantities in the orbital frame O and SI units; samples at the verification step, one row per time.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from planner.costs import approach_energy
+from planner.plan import GraspPlan
+from planner.rotation import matrix_to_quat
+from planner.verify import VerifyReport
+
+SCHEMA = "lutgen.plan/1"
+
+
+def _finite(x: float) -> float | None:
+    """JSON has no inf/NaN: unconstrained limits are written as null."""
+    return float(x) if math.isfinite(x) else None
+
+
+def plan_metrics(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
+    """Costs, margins, solver statistics and grasp errors of a verified plan."""
+    sc = plan.scenario
+    checks = {name: {"value": _finite(c.value), "limit": _finite(c.limit), "margin": _finite(c.margin),
+                     "passed": bool(c.passed), "where": c.where} for name, c in report.checks.items()}
+    return {
+        "feasible": bool(report.feasible),
+        "violations": list(report.violations),
+        "start_delay_s": plan.approach.start_delay_s,
+        "base_offset_m": {"x": float(plan.approach.base_offset_m[0]), "z": float(plan.approach.base_offset_m[1])},
+        "free_axis_angle_deg": math.degrees(plan.tracking.free_axis_angle_rad),
+        "costs": {
+            "approach_energy_m2": approach_energy(plan.approach.base_offset_m),
+            "min_distance_m": float(np.min(report.min_distance_m)),
+            "peak_grasp_torque_nm": float(np.abs(report.grasp_wrench[:, 3:]).max()),
+            "peak_grasp_force_n": float(np.abs(report.grasp_wrench[:, :3]).max()),
+        },
+        "collision_pairs": int(report.pair_count),
+        "checks": checks,
+        "solver": {
+            "approach": {"status": plan.approach.status, "iterations": plan.approach.iterations,
+                         "time_s": plan.approach.solve_time_s},
+            "stabilization": {"status": plan.stabilization.status, "iterations": plan.stabilization.iterations,
+                              "time_s": plan.stabilization.solve_time_s,
+                              "build_time_s": plan.stabilization.build_time_s},
+            "timings_s": dict(plan.timings_s),
+        },
+        "notes": list(plan.notes),
+        "limits": {"grasp_torque_max_nm": _finite(sc.limits.grasp_torque_max_nm),
+                   "grasp_force_max_n": _finite(sc.limits.grasp_force_max_n),
+                   "collision_margin_m": sc.limits.collision_margin_m},
+    }
+
+
+def plan_samples(plan: GraspPlan, report: VerifyReport) -> dict[str, np.ndarray]:
+    """The sampled trajectory at the report's fixed step (the plan's own samples at those times)."""
+    t = np.asarray(report.t)
+    q = plan.q[report.sample_index]
+    qd = plan.qd[report.sample_index]
+    return {
+        "t": t, "q": q, "qd": qd,
+        "base_position": report.base_pose[0], "base_wxyz": report.base_pose[1],
+        "ee_position": report.ee_pose[0], "ee_wxyz": report.ee_pose[1],
+        "grasp_position": report.grasp_pose[0], "grasp_wxyz": report.grasp_pose[1],
+        "target_position": report.target_pose[0], "target_wxyz": report.target_pose[1],
+        "grasp_wrench": report.grasp_wrench,
+    }
+
+
+def plan_document(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
+    """The ``lutgen.plan/1`` JSON object."""
+    sc = plan.scenario
+    T = plan.T_body_grasp_used
+    samples = plan_samples(plan, report)
+    return {
+        "schema": SCHEMA,
+        "status": "feasible" if report.feasible else "infeasible",
+        "scenario": sc.name,
+        "robot_urdf": sc.robot.urdf_path,
+        "ee_frame": sc.robot.ee_frame,
+        "target": {
+            "inertia_kg_m2": np.diag(sc.target.inertia_body_kg_m2).tolist(),
+            "mass_kg": sc.target.mass_kg,
+            "com_position_m": sc.target.p_world_com.tolist(),
+            "attitude_wxyz": np.asarray(plan.target_state.attitude_wxyz).tolist(),
+            "omega_body_rad_s": np.asarray(plan.target_state.omega_body_rad_s).tolist(),
+            "grasp_in_body": {"position": T[:3, 3].tolist(), "wxyz": matrix_to_quat(T[:3, :3]).tolist()},
+        },
+        "phases": {name: [float(a), float(b)] for name, (a, b) in plan.phases.items()},
+        "metrics": plan_metrics(plan, report),
+        "samples": {key: np.asarray(v).tolist() for key, v in samples.items()},
+    }
+
+
+def write_json(path: str | Path, document: dict[str, Any]) -> None:
+    """Write the plan JSON (atomically: a reader never sees half a file)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(document, indent=1), encoding="utf-8")
+    tmp.replace(path)
+
+
+CSV_COLUMNS = (("t", 1), ("q", 7), ("qd", 7), ("base_position", 3), ("base_wxyz", 4), ("ee_position", 3),
+               ("ee_wxyz", 4), ("grasp_position", 3), ("grasp_wxyz", 4), ("target_position", 3),
+               ("target_wxyz", 4), ("grasp_wrench", 6))
+
+
+def write_csv(path: str | Path, plan: GraspPlan, report: VerifyReport) -> None:
+    """The samples flat: one row per time step, a header naming each column with its unit."""
+    samples = plan_samples(plan, report)
+    header, columns = [], []
+    for key, width in CSV_COLUMNS:
+        data = np.asarray(samples[key]).reshape(len(samples["t"]), -1)
+        if width == 1:
+            header.append(key)
+        else:
+            suffixes = {"grasp_wrench": ["fx", "fy", "fz", "mx", "my", "mz"]}.get(
+                key, ["w", "x", "y", "z"] if key.endswith("wxyz") else
+                ["x", "y", "z"] if key.endswith("position") else [str(j + 1) for j in range(width)])
+            header += [f"{key}_{s}" for s in suffixes]
+        columns.append(data)
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        for row in np.hstack(columns):
+            writer.writerow([f"{v:.10g}" for v in row])
+    tmp.replace(path)

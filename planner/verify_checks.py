@@ -1,0 +1,256 @@
+"""The individual checks of :func:`planner.verify.verify`, their tolerances and :class:`CheckResult`.
+
+Each function takes the plan's stored samples (``t`` s, ``q`` rad, ``qd`` rad/s, ``x`` base poses) plus
+precomputed world poses (4×4 stacks over *all* stored samples, so FD stencils find their neighbours)
+and returns named :class:`CheckResult` s. Why each tolerance is what it is: see :mod:`planner.verify`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.robot import RobotModel
+from planner.scenario import Scenario
+from planner.scene import TARGET_BODY, build_scene
+from planner.target import TargetMotion
+from planner.verify_kinematics import (
+    PHASE_NAMES,
+    TIME_TOL_S,
+    PinKinematics,
+    base_twist_world,
+    derivative,
+    extrapolate,
+    rotation_rates,
+)
+
+Array = NDArray[np.float64]
+Segment = tuple[int, int]
+
+FEASIBILITY_TOL = 1e-6  # slack (SI unit of the check) on physical limits: solver-tolerance activity
+GRASP_POSITION_TOL_M = 1e-3
+GRASP_ORIENTATION_TOL_RAD = float(np.radians(0.1))
+GRASP_VELOCITY_TOL_M_S = 1e-3
+GRASP_ANGULAR_VELOCITY_TOL_RAD_S = float(np.radians(0.05))
+JOIN_VELOCITY_JUMP_TOL_RAD_S = 1e-6
+END_VELOCITY_TOL_RAD_S = 1e-6
+RATE_CONSISTENCY_TOL_RAD_S = 1e-4
+MOMENTUM_RELATIVE_TOL = 1e-3
+MOMENTUM_FLOOR = 1e-3  # N·s and N·m·s: momentum scale of a plan whose arm does not move
+JOIN_EXTRAPOLATION_POINTS = 5
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """One verified constraint: worst ``value`` found, its ``limit``, ``margin`` (≥ 0 satisfied), SI ``unit``."""
+
+    name: str
+    value: float
+    limit: float
+    margin: float
+    passed: bool
+    unit: str
+    where: str  # what and when, e.g. "joint4 upper bound at t = 12.340 s (approach)"
+    t_s: float | None = None  # time of the worst value (s since the observation)
+
+
+def make_check(name: str, value: float, limit: float, unit: str, where: str, t_s: float | None, *,
+               lower: bool = False, tol: float = 0.0) -> CheckResult:
+    """``value ≤ limit`` (``≥`` when ``lower``), passed when margin ≥ −tol; an infinite limit always passes."""
+    margin = (value - limit) if lower else (limit - value)
+    if not np.isfinite(limit):
+        margin = np.inf
+    return CheckResult(name, float(value), float(limit), float(margin), bool(margin >= -tol), unit, where,
+                       None if t_s is None else float(t_s))
+
+
+def when(t_s: float, phase: int) -> str:
+    return f"t = {t_s:.3f} s ({PHASE_NAMES[phase]})"
+
+
+def joint_checks(robot: RobotModel, t: Array, q: Array, qd: Array, phase_index: Array) -> dict[str, CheckResult]:
+    """URDF position and velocity boxes at every stored sample."""
+    lower, upper = q - robot.q_min, robot.q_max - q
+    margins = np.minimum(lower, upper)
+    k, j = np.unravel_index(int(np.argmin(margins)), margins.shape)
+    side, bound = ("lower", robot.q_min[j]) if lower[k, j] <= upper[k, j] else ("upper", robot.q_max[j])
+    pos = CheckResult("joint_position", float(q[k, j]), float(bound), float(margins[k, j]),
+                      bool(margins[k, j] >= -FEASIBILITY_TOL), "rad",
+                      f"{robot.joints[j].name} {side} bound at {when(t[k], phase_index[k])}", float(t[k]))
+    vmargins = robot.qd_max - np.abs(qd)
+    k, j = np.unravel_index(int(np.argmin(vmargins)), vmargins.shape)
+    vel = make_check("joint_velocity", abs(qd[k, j]), robot.qd_max[j], "rad/s",
+                     f"{robot.joints[j].name} at {when(t[k], phase_index[k])}", t[k], tol=FEASIBILITY_TOL)
+    return {"joint_position": pos, "joint_velocity": vel}
+
+
+def rate_consistency_check(robot: RobotModel, t: Array, q: Array, qd: Array, phase_index: Array,
+                           segments: list[Segment], sel: Array) -> CheckResult:
+    """Stored joint rates vs FD of the stored joint angles (the rates feed the velocity and momentum checks)."""
+    worst = (0.0, 0, 0)
+    for k in sel:
+        seg = segments[int(phase_index[k])]
+        err = np.abs(derivative(t, q, int(k), seg, 1) - qd[k])
+        j = int(np.argmax(err))
+        if err[j] > worst[0]:
+            worst = (float(err[j]), int(k), j)
+    e, k, j = worst
+    return make_check("joint_rate_consistency", e, RATE_CONSISTENCY_TOL_RAD_S, "rad/s",
+                      f"{robot.joints[j].name}: |q̇ − FD(q)| at {when(t[k], phase_index[k])}", t[k])
+
+
+def collision_check(sc: Scenario, chaser: PinKinematics, t: Array, x: Array, q: Array, phase_index: Array,
+                    sel: Array, T_target: Array) -> tuple[CheckResult, Array, dict[str, float]]:
+    """Signed distance of every scene pair at the verified samples: (check, per-sample min, per-pair min)."""
+    scene = build_scene(sc)
+    names = [f"{a}-{b}" for a, b in scene.pairs]
+    pair_min = dict.fromkeys(names, np.inf)
+    min_dist = np.empty(len(sel))
+    worst = (np.inf, "", 0)
+    for i, k in enumerate(sel):
+        chaser.forward(x[k], q[k])
+        poses = chaser.body_poses()
+        poses[TARGET_BODY] = T_target[k]
+        dists = scene.distances(poses)
+        for name, pd in zip(names, dists, strict=True):
+            pair_min[name] = min(pair_min[name], pd.distance_m)
+            if pd.distance_m < worst[0]:
+                worst = (pd.distance_m, f"{name} ({pd.shape_pair[0]}/{pd.shape_pair[1]})", int(k))
+        min_dist[i] = min(pd.distance_m for pd in dists)
+    d, pair, k = worst
+    check = make_check("collision", d, sc.limits.collision_margin_m, "m", f"{pair} at {when(t[k], phase_index[k])}",
+                       t[k], lower=True, tol=FEASIBILITY_TOL)
+    return check, min_dist, {name: float(v) for name, v in pair_min.items()}
+
+
+def _relative_deviation(dh: Array, h_arm: Array, h_ref: Array) -> tuple[Array, float, float]:
+    """Per-sample max(‖ΔP‖/scale_P, ‖ΔL‖/scale_L) and the two scales (see :mod:`planner.verify`)."""
+    scale_P = max(float(np.linalg.norm(h_ref[:3])), float(np.linalg.norm(h_arm[:, :3], axis=1).max()), MOMENTUM_FLOOR)
+    scale_L = max(float(np.linalg.norm(h_ref[3:])), float(np.linalg.norm(h_arm[:, 3:], axis=1).max()), MOMENTUM_FLOOR)
+    rel = np.maximum(np.linalg.norm(dh[:, :3], axis=1) / scale_P, np.linalg.norm(dh[:, 3:], axis=1) / scale_L)
+    return rel, scale_P, scale_L
+
+
+def momentum_checks(chaser: PinKinematics, compound: PinKinematics, motion: TargetMotion, t: Array, x: Array,
+                    q: Array, qd: Array, phase_index: Array, segments: list[Segment], sel: Array, k_pre: int,
+                    k_post: int) -> tuple[dict[str, CheckResult], Array]:
+    """Chaser momentum (must be 0) up to the grasp, compound momentum (must keep its grasp value) from it on.
+
+    Returns the checks and the momentum ``[P; L_G]`` (world) at the verified samples.
+    """
+    momentum = np.zeros((len(sel), 6))
+    out = {}
+    h_chaser_grasp = np.zeros(6)
+    for name, model, rows in (("momentum_chaser", chaser, np.flatnonzero(sel <= k_pre)),
+                              ("momentum_compound", compound, np.flatnonzero(sel >= k_post))):
+        h, h_arm = np.empty((len(rows), 6)), np.empty((len(rows), 6))
+        for r, i in enumerate(rows):
+            k = int(sel[i])
+            segment = segments[2] if name == "momentum_compound" else segments[min(int(phase_index[k]), 1)]
+            v, w = base_twist_world(t, x, k, segment)
+            h[r], h_arm[r] = model.momentum(x[k], q[k], v, w, qd[k])
+        momentum[rows] = h
+        h_ref = np.zeros(6) if name == "momentum_chaser" else h[0]  # rows[0] is the grasp instant
+        rel, sP, sL = _relative_deviation(h - h_ref, h_arm, h_ref)
+        r = int(np.argmax(rel))
+        k = int(sel[rows[r]])
+        where = (f"|ΔP| = {np.linalg.norm(h[r, :3] - h_ref[:3]):.3g} N·s (scale {sP:.3g}), |ΔL_G| = "
+                 f"{np.linalg.norm(h[r, 3:] - h_ref[3:]):.3g} N·m·s (scale {sL:.3g}) at {when(t[k], phase_index[k])}")
+        if name == "momentum_chaser":
+            h_chaser_grasp = h[-1]
+        else:  # information: what the chaser and the free target carried just before the grasp
+            L_target = motion.angular_momentum_world(t[k_pre])[0]  # its COM is at rest: P_target = 0
+            d = h_ref - h_chaser_grasp - np.concatenate([np.zeros(3), L_target])
+            where += (f"; at the grasp vs chaser + free target: |ΔP| = {np.linalg.norm(d[:3]):.3g} N·s, "
+                      f"|ΔL| = {np.linalg.norm(d[3:]):.3g} N·m·s")
+        out[name] = make_check(name, rel[r], MOMENTUM_RELATIVE_TOL, "rel", where, t[k])
+    return out, momentum
+
+
+def grasp_checks(motion: TargetMotion, t: Array, T_ee: Array, T_free: Array, T_body_grasp: Array,
+                 segment: Segment, k: int) -> dict[str, CheckResult]:
+    """Relative pose and twist of the ee and the grasp frame at the grasp instant (sample k, end of ``segment``)."""
+    T_grasp = T_free[k] @ T_body_grasp
+    p_ee, R_ee = T_ee[k, :3, 3], T_ee[k, :3, :3]
+    position_error = float(np.linalg.norm(p_ee - T_grasp[:3, 3]))
+    orientation_error = float(np.linalg.norm(pin.log3(T_grasp[:3, :3].T @ R_ee)))
+    v_ee = derivative(t, T_ee[:, :3, 3], k, segment, 1)
+    w_ee, _ = rotation_rates(t, T_ee[:, :3, :3], k, segment)
+    w_target = motion.grasp_twist(t[k])[1][0]
+    v_target = np.cross(w_target, p_ee - T_free[k, :3, 3])  # target material point at the ee (COM at rest)
+    dw = float(np.linalg.norm(w_ee - w_target))
+    at = f"t_grasp = {t[k]:.3f} s"
+    return {
+        "grasp_position": make_check("grasp_position", position_error, GRASP_POSITION_TOL_M, "m", at, t[k]),
+        "grasp_orientation": make_check("grasp_orientation", orientation_error, GRASP_ORIENTATION_TOL_RAD, "rad",
+                                        f"{np.degrees(orientation_error):.3g}° at {at}", t[k]),
+        "grasp_velocity": make_check("grasp_velocity", np.linalg.norm(v_ee - v_target), GRASP_VELOCITY_TOL_M_S,
+                                     "m/s", f"ee vs target point at {at}", t[k]),
+        "grasp_angular_velocity": make_check("grasp_angular_velocity", dw, GRASP_ANGULAR_VELOCITY_TOL_RAD_S,
+                                             "rad/s", f"{np.degrees(dw):.3g}°/s at {at}", t[k]),
+    }
+
+
+def _rate_at_join(t: Array, qd: Array, idx: Array, t_join: float, after: bool) -> Array:
+    """Joint rates of one phase (its samples ``idx``) at the join instant: stored, or extrapolated."""
+    at = idx[np.abs(t[idx] - t_join) <= TIME_TOL_S]
+    if at.size:
+        return qd[at[0]]
+    near = idx[:JOIN_EXTRAPOLATION_POINTS] if after else idx[-JOIN_EXTRAPOLATION_POINTS:]
+    return extrapolate(t, qd, near, t_join)
+
+
+def join_velocity_checks(robot: RobotModel, phases: dict[str, tuple[float, float]], t: Array, qd: Array,
+                      phase_index: Array) -> dict[str, CheckResult]:
+    """Joint-rate jump at the approach/tracking and tracking/stabilization joins."""
+    out = {}
+    for p in (0, 1):
+        a, b = PHASE_NAMES[p], PHASE_NAMES[p + 1]
+        t_join = float(phases[a][1])
+        jump = np.abs(_rate_at_join(t, qd, np.flatnonzero(phase_index == p + 1), t_join, after=True)
+                      - _rate_at_join(t, qd, np.flatnonzero(phase_index == p), t_join, after=False))
+        j = int(np.argmax(jump))
+        name = f"join_velocity_{a}_{b}"
+        out[name] = make_check(name, jump[j], JOIN_VELOCITY_JUMP_TOL_RAD_S, "rad/s",
+                               f"{robot.joints[j].name} rate jump at the {a}/{b} join, t = {t_join:.3f} s", t_join)
+    return out
+
+
+def end_velocity_check(robot: RobotModel, t: Array, qd: Array) -> CheckResult:
+    j = int(np.argmax(np.abs(qd[-1])))
+    return make_check("end_velocity", abs(qd[-1, j]), END_VELOCITY_TOL_RAD_S, "rad/s",
+                      f"{robot.joints[j].name} at the end of stabilization, t = {t[-1]:.3f} s", t[-1])
+
+
+def wrench_checks(sc: Scenario, t: Array, T_ee: Array, T_attached: Array, segment: Segment, sel: Array,
+                  k_post: int) -> tuple[dict[str, CheckResult], Array]:
+    """Grasp wrench [F; M] on the attached target, ee frame, at the verified samples from the grasp on.
+
+    ``F = m a_com``, ``M = I_w α + ω × I_w ω + (p_com − p_ee) × F`` with a_com, ω, α by FD of the
+    attached target pose. Returns the force/torque checks (per component) and the n×6 wrench.
+    """
+    mass, I_body = sc.target.mass_kg, sc.target.inertia_body_kg_m2
+    wrench = np.zeros((len(sel), 6))
+    post = np.flatnonzero(sel >= k_post)
+    for i in post:
+        k = int(sel[i])
+        a_com = derivative(t, T_attached[:, :3, 3], k, segment, 2)
+        w, alpha = rotation_rates(t, T_attached[:, :3, :3], k, segment)
+        R_T = T_attached[k, :3, :3]
+        I_w = R_T @ I_body @ R_T.T
+        F = mass * a_com
+        M = I_w @ alpha + np.cross(w, I_w @ w) + np.cross(T_attached[k, :3, 3] - T_ee[k, :3, 3], F)
+        R_ee = T_ee[k, :3, :3]
+        wrench[i] = np.concatenate([R_ee.T @ F, R_ee.T @ M])
+    out = {}
+    for name, cols, limit, unit in (("grasp_force", slice(0, 3), sc.limits.grasp_force_max_n, "N"),
+                                    ("grasp_torque", slice(3, 6), sc.limits.grasp_torque_max_nm, "N·m")):
+        block = np.abs(wrench[post, cols])
+        r, axis = np.unravel_index(int(np.argmax(block)), block.shape)
+        k = int(sel[post[r]])
+        out[name] = make_check(name, block[r, axis], limit, unit, f"ee-frame {'xyz'[axis]} component at "
+                               f"{when(t[k], 2)}", t[k], tol=FEASIBILITY_TOL)
+    return out, wrench
