@@ -9,8 +9,9 @@ A plan is *feasible* only if every check passes. Checks (``margin`` ≥ 0 means 
 in report order; the tolerances live in :mod:`planner.verify_checks`:
 
 * ``joint_position``, ``joint_velocity``: URDF boxes, at every stored sample (cheap, so all of them).
-* ``joint_rate_consistency``: stored q̇ vs FD of the stored q (< 1e-4 rad/s; the rates feed the velocity
-  and momentum checks). FD error measured on a solved plan: ≤ 6e-6 rad/s, at the tracking profile ends.
+* ``joint_rate_consistency``: stored q̇ vs FD of the stored q (< 1e-3 rad/s; the rates feed the velocity
+  and momentum checks). FD error measured on solved plans: ≤ 3e-5 rad/s, at the end of the tracking
+  blend, where the joint jerk jumps; elsewhere ~1e-9. Catches wrong or mis-scaled rates, not noise.
 * ``collision``: every scene pair (29 by default) ≥ ``limits.collision_margin_m``. Up to the grasp the
   target moves torque-free; after it, it is rigidly attached: ``T_world_target = T_world_ee T_ee_target``.
 * ``momentum_chaser`` (up to the grasp; must be 0) and ``momentum_compound`` (from the grasp on; must
@@ -38,9 +39,11 @@ in report order; the tolerances live in :mod:`planner.verify_checks`:
   FD of the attached target pose, ``F = m a``, ``M = I_w α + ω × I_w ω + (p_com − p_ee) × F``, in the
   ee (grasp) frame; every component within ``limits.grasp_force_max_n`` / ``grasp_torque_max_nm``
   (per component, as in the NLP; an infinite limit always passes, the peak is still reported). Agrees
-  with the NLP's exact-derivative wrench to ~5e-6 N·m.
+  with the NLP's exact-derivative wrench to ~5e-6 N·m, but only to ~1e-3 N·m (1.2e-4 of 12 N·m) at
+  samples next to a stabilization B-spline knot, where the target's jerk jumps and the second
+  difference errs by O(h · jump); hence these two pass when ``margin ≥ −WRENCH_TOL_REL · limit`` (2e-4).
 
-Physical limits (joint boxes, collision, wrench) pass when ``margin ≥ -FEASIBILITY_TOL`` (1e-6): a
+The other physical limits (joint boxes, collision) pass when ``margin ≥ -FEASIBILITY_TOL`` (1e-6): a
 constraint the solver left active at its tolerance (IPOPT ``constr_viol_tol`` 1e-7) is not a violation.
 """
 
@@ -63,6 +66,7 @@ from planner.verify_checks import (
     JOIN_VELOCITY_JUMP_TOL_RAD_S,
     MOMENTUM_RELATIVE_TOL,
     RATE_CONSISTENCY_TOL_RAD_S,
+    WRENCH_TOL_REL,
     CheckResult,
     collision_check,
     end_velocity_check,
@@ -85,7 +89,7 @@ from planner.verify_kinematics import (
 __all__ = [
     "DEFAULT_STEP_S", "END_VELOCITY_TOL_RAD_S", "FEASIBILITY_TOL", "GRASP_ANGULAR_VELOCITY_TOL_RAD_S",
     "GRASP_ORIENTATION_TOL_RAD", "GRASP_POSITION_TOL_M", "GRASP_VELOCITY_TOL_M_S", "JOIN_VELOCITY_JUMP_TOL_RAD_S",
-    "MAX_STEP_S", "MOMENTUM_RELATIVE_TOL", "RATE_CONSISTENCY_TOL_RAD_S", "CheckResult", "PoseSamples",
+    "MAX_STEP_S", "MOMENTUM_RELATIVE_TOL", "RATE_CONSISTENCY_TOL_RAD_S", "WRENCH_TOL_REL", "CheckResult", "PoseSamples",
     "VerifyReport", "summary_lines", "verify",
 ]
 

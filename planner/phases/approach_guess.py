@@ -31,12 +31,16 @@ from planner.target import TargetBody, TargetMotion, TargetState
 Array = NDArray[np.float64]
 
 DELAY_STEP_S = 2.0  # candidate meeting times are this far apart
+IK_SEED = 20261122  # fixed: same inputs, same guesses
+IK_EXTRA_STARTS = 4
 MIN_SEPARATION_S = 6.0  # alternative starts differ at least this much in meeting time
 # node-to-node mean joint speed ≤ this × the limit, per tracking segment: the first segment follows the
 # quintic blend, whose peak rate is 15/8 of its mean; later ones track the grasp frame almost uniformly
 TRACKING_SPEED_MARGIN = (0.6, 0.8, 0.8)
 REACH_TOLERANCE = 1e-3  # pose residual (m, rad) below which a pose counts as reachable
 REGULARISATION = 0.02  # weight pulling the IK toward θ_in and the base-offset guess (1/rad, 1/m)
+# the polish keeps a little of it: with none, the redundant arm and the base drift to their bounds
+POLISH_REGULARISATION = 2e-3
 
 
 @dataclass(frozen=True)
@@ -70,12 +74,16 @@ def _ik_residual_function(scenario: Scenario) -> ca.Function:
     weight = ca.SX.sym("weight")
     dp = ca.SX.sym("drift_p", 3)  # base drift since t = 0 (free-floating), held fixed in the IK
     dR = ca.SX.sym("drift_R", 3, 3)
+    base_given = ca.SX.sym("base_given", 2)  # used instead of x[-2:] when fix_base = 1
+    fix_base = ca.SX.sym("fix_base")
+    base = fix_base * base_given + (1 - fix_base) * x[-2:]
     out = fk_function(sc.robot)(x[:-2])
-    p_ee = ca.vertcat(x[-2], 0.0, x[-1]) + dp + ca.mtimes(dR, out[-1])
+    p_ee = ca.vertcat(base[0], 0.0, base[1]) + dp + ca.mtimes(dR, out[-1])
     rot = ca.reshape(ca.mtimes(ca.mtimes(dR, out[-2]) - R_goal, S), 9, 1)
     reg = weight * ca.vertcat(x[:-2] - ca.DM(sc.q_initial), x[-2:] - ca.DM(sc.base_offset_guess_m))
     r = ca.vertcat(p_ee - p_goal, rot, reg)
-    return ca.Function("pose_ik", [x, p_goal, R_goal, S, weight, dp, dR], [r, ca.jacobian(r, x)])
+    return ca.Function("pose_ik", [x, p_goal, R_goal, S, weight, dp, dR, base_given, fix_base],
+                       [r, ca.jacobian(r, x)])
 
 
 class _PoseIK:
@@ -91,24 +99,26 @@ class _PoseIK:
     def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array],
               base_fixed: Array | None = None, drift: tuple[Array, Array] | None = None) -> Array | None:
         dp, dR = drift if drift is not None else (np.zeros(3), np.eye(3))
-        lo, hi = self.lo.copy(), self.hi.copy()
-        if base_fixed is not None:
-            lo[-2:], hi[-2:] = base_fixed - 1e-9, base_fixed + 1e-9
+        lo, hi = self.lo, self.hi
+        fixed = (np.zeros(2), 0.0) if base_fixed is None else (np.asarray(base_fixed, dtype=float), 1.0)
 
         def solve_from(x0: Array, weight: float) -> Array:
             def residual(x: Array) -> Array:
-                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR)[0]).ravel()
+                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR, *fixed)[0]).ravel()
 
             def jacobian(x: Array) -> Array:
-                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR)[1])
+                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR, *fixed)[1])
 
             return least_squares(residual, np.clip(x0, lo, hi), jac=jacobian, bounds=(lo, hi), xtol=1e-10,
                                  ftol=1e-10, max_nfev=200).x
 
         for x0 in starts:
-            # regularised solve (stays near θ_in), then a polish that removes the regularisation's bias
-            x = solve_from(solve_from(x0, REGULARISATION), 1e-6)
-            if np.linalg.norm(np.asarray(self.fn(x, p_goal, R_goal, S, 0.0, dp, dR)[0]).ravel()[:12]) < REACH_TOLERANCE:
+            # regularised solve (stays near θ_in), then a polish that removes most of the regularisation's bias
+            x = solve_from(solve_from(x0, REGULARISATION), POLISH_REGULARISATION)
+            pose_error = np.asarray(self.fn(x, p_goal, R_goal, S, 0.0, dp, dR, *fixed)[0]).ravel()[:12]
+            if np.linalg.norm(pose_error) < REACH_TOLERANCE:
+                if base_fixed is not None:
+                    x = np.concatenate([x[:-2], base_fixed])
                 return x
         return None
 
@@ -127,11 +137,16 @@ def initial_guesses(scenario: Scenario, spline: UniformCubicBSpline, state: Targ
     free = sc.target.grasp.free_axis
     S_pre = np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)])
     x_home = np.concatenate([sc.q_initial, sc.base_offset_guess_m])
+    # a few fixed, seeded extra starts: the IK has local minima (folded vs stretched arm)
+    rng = np.random.default_rng(IK_SEED)
+    extra_starts = [np.concatenate([rng.uniform(0.6 * robot.q_min, 0.6 * robot.q_max), sc.base_offset_guess_m])
+                    for _ in range(IK_EXTRA_STARTS)]
     x_prev = x_home
     candidates: list[tuple] = []
     for tau in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S):
         R_g, p_g = (a[0] for a in motion.grasp_pose(tau + tf))
-        x_pre = ik.solve(p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2], R_g, S_pre, [x_prev, x_home])
+        x_pre = ik.solve(p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2], R_g, S_pre,
+                         [x_prev, x_home, *extra_starts])
         if x_pre is None:
             continue
         x_prev = x_pre
@@ -146,7 +161,8 @@ def initial_guesses(scenario: Scenario, spline: UniformCubicBSpline, state: Targ
             R_n, p_n = (a[0] for a in motion.grasp_pose(tau + tf + t_node))
             R_G = R_n @ R_free
             x_node = ik.solve(p_n - backoff_m(sc.approach.pregrasp_backoff_m, t_node, t2) * R_G[:, 2], R_G,
-                              np.eye(3), [x_node], base_fixed=b)
+                              np.eye(3), [x_node, *(np.concatenate([s[:7], b]) for s in (x_home, *extra_starts))],
+                              base_fixed=b)
             if x_node is None:
                 break
             configs.append(x_node)

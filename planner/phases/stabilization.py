@@ -109,6 +109,19 @@ def wrench_function(scenario: Scenario, compound: RobotModel, T_ee_target: Array
                        ["x_base", "q", "qd", "qdd", "h_world"], ["F_grasp", "M_grasp", "omega_base", "R_ee", "p_ee"])
 
 
+def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float64]:
+    """``count`` uniform via points in (0, t_f³] plus every interior knot of the spline (s).
+
+    Within a segment the joint accelerations are linear, so the wrench is smooth; at a knot the jerk
+    jumps and the wrench's slope kinks, which is where it peaks between uniform via points. Putting a
+    via point on every knot removes that blind spot.
+    """
+    T = spline.duration_s
+    uniform = T * np.arange(1, count + 1) / count
+    knots = spline.segment_duration_s * np.arange(1, spline.n_segments)
+    return np.unique(np.round(np.concatenate([uniform, knots]), 9))
+
+
 class StabilizationProblem:
     """The stabilization NLP for one grasp geometry; solve() takes the grasp state as parameters."""
 
@@ -122,8 +135,8 @@ class StabilizationProblem:
         st = sc.stabilization
         T = sc.phases.stabilization_s
         self.spline = UniformCubicBSpline(st.n_vertices, T)
-        k = st.via_points
-        m_steps = k * int(np.ceil(st.rk4_steps / k))
+        via_times = via_point_times(self.spline, st.via_points)
+        k = len(via_times)
         self.k = k
         self.n_params = n * self.spline.n_free_per_joint
         torque_limit = sc.limits.grasp_torque_max_nm if torque_limit_nm is None else torque_limit_nm
@@ -134,17 +147,17 @@ class StabilizationProblem:
         x = par[3 * n:3 * n + 7]
         h = par[3 * n + 7:]
         V = stabilization_vertices(self.spline, q_in, qd_in, a_in, P)
-        nodes = np.linspace(0.0, T, m_steps + 1)
+        # RK4 nodes: a uniform grid refined so that every via point is a node (steps may differ)
+        nodes = np.unique(np.round(np.concatenate([np.linspace(0.0, T, st.rk4_steps + 1), via_times]), 9))
         mids = 0.5 * (nodes[:-1] + nodes[1:])
         Qn, Qdn, Qddn = (self.spline.evaluate(V, nodes, d) for d in (0, 1, 2))
         Qm, Qdm = (self.spline.evaluate(V, mids, d) for d in (0, 1))
-        dt = T / m_steps
         xs = [x]
-        for i in range(m_steps):
+        for i in range(len(nodes) - 1):
             x = ff.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
-                            h, dt)
+                            h, nodes[i + 1] - nodes[i])
             xs.append(x)
-        via_idx = [m_steps // k * (j + 1) for j in range(k)]
+        via_idx = [int(np.argmin(np.abs(nodes - tv))) for tv in via_times]
         wrench = wrench_function(sc, compound, T_ee_target)
         fk = fk_function(compound)
         T_et = ca.DM(T_ee_target)
