@@ -149,12 +149,11 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     """
     from dataclasses import replace
 
-    from planner.verify import summary_lines, verify
-
     from lut.export import plan_document, write_csv, write_json
     from planner.errors import LutgenError
     from planner.plan import Planner
     from planner.scenario import load_scenario
+    from planner.verify import summary_lines, verify
 
     if not 0 < verify_step_s <= 0.02:
         raise LutgenError(f"--verify-step-s: must be in (0, 0.02], got {verify_step_s}")
@@ -198,3 +197,134 @@ def _plan_table(result, report) -> list[str]:  # noqa: ANN001
     lines.append(f"min distance {np.min(report.min_distance_m):.4f} m over {report.pair_count} pairs; "
                  f"peak grasp torque {np.abs(report.grasp_wrench[:, 3:]).max():.3f} N·m")
     return lines
+
+
+@main.command()
+@click.argument("grid_path", type=click.Path(dir_okay=False))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), required=True, help="The HDF5 table to write.")
+@click.option("-j", "--jobs", type=int, default=1, show_default=True, help="Points solved in parallel (loky).")
+@click.option("--backend", type=click.Choice(["loky", "dask"]), default="loky", show_default=True,
+              help="joblib backend; dask needs --scheduler and the 'dask' extra.")
+@click.option("--scheduler", default=None, metavar="tcp://HOST:PORT", help="Dask distributed scheduler address.")
+@click.option("--point-timeout", "point_timeout_s", type=float, default=900.0, show_default=True,
+              help="Wall-time limit per grid point (s); a point past it is recorded as failed.")
+@click.option("--resume", is_flag=True, help="Continue an interrupted build from its journal.")
+@click.option("--no-progress", is_flag=True, help="No progress bar (logs, CI).")
+@user_errors
+def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str | None, point_timeout_s: float,
+          resume: bool, no_progress: bool) -> None:
+    """Solve every point of GRID_PATH and store the verified plans in an HDF5 look-up table.
+
+    Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
+    """
+    from lut.build import BuildOptions, run_build
+
+    options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
+                           resume=resume, progress=not no_progress)
+    summary = run_build(grid_path, out_path, options)
+    c = summary.counts
+    click.echo(f"built {summary.table}: {summary.n_points} points — {c['feasible']} feasible, "
+               f"{c['infeasible']} infeasible, {c['failed']} failed, {c['pending']} pending; "
+               f"{summary.solved_now} solved in {summary.wall_time_s:.0f} s")
+    for line in summary.failures[:10]:
+        click.echo(f"  failed {line}")
+
+
+@main.command()
+@click.argument("table_path", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
+@user_errors
+def inspect(table_path: str, as_json: bool) -> None:
+    """Summarise a look-up table: grid, point counts, cost and solve-time statistics, model hash."""
+    import json
+
+    import numpy as np
+
+    from lut.store import Table
+
+    table = Table.open(table_path)
+    feasible = table.status == 1
+
+    def stats(values: np.ndarray) -> dict[str, float | None]:
+        v = np.asarray(values, dtype=float)[feasible]
+        v = v[np.isfinite(v)]
+        if v.size == 0:
+            return {"min": None, "median": None, "max": None}
+        return {"min": float(v.min()), "median": float(np.median(v)), "max": float(v.max())}
+
+    info = {
+        "table": table_path, "schema_version": int(table.attrs["schema_version"]),
+        "model_hash": table.model_hash, "grid_kind": table.attrs.get("grid_kind"),
+        "axes": {name: [float(x) for x in values] for name, values in zip(table.axis_names, table.axis_values,
+                                                                            strict=True)},
+        "counts": table.counts(), "n_points": table.n_points,
+        "solve_time_s": stats(table.field("solve_time_s")),
+        "costs": {key: stats(table.field(f"costs/{key}")) for key in
+                  ("min_distance_m", "approach_energy_m2", "peak_grasp_torque_nm")
+                  if table.has_field(f"costs/{key}")},
+    }
+    if as_json:
+        click.echo(json.dumps(info, indent=1))
+        return
+    click.echo(f"table      {table_path} (schema {info['schema_version']}, model {info['model_hash'][:12]}…)")
+    for name, values in info["axes"].items():
+        click.echo(f"axis       {name}: {len(values)} values in [{min(values):g}, {max(values):g}]")
+    click.echo("points     " + ", ".join(f"{k} {v}" for k, v in info["counts"].items()) + f" (of {table.n_points})")
+    for name, s in [("solve time [s]", info["solve_time_s"])] + [(k, v) for k, v in info["costs"].items()]:
+        if s["min"] is not None:
+            click.echo(f"{name:<22} min {s['min']:.4g}  median {s['median']:.4g}  max {s['max']:.4g}")
+
+
+@main.command()
+@click.argument("table_path", type=click.Path(dir_okay=False))
+@click.option("--attitude", required=True, metavar="W,X,Y,Z", help="Observed target attitude (unit quaternion).")
+@click.option("--omega-deg-s", required=True, metavar="X,Y,Z", help="Observed body rates (deg/s).")
+@click.option("--refine", is_flag=True, help="Always run a warm-started solve after the interpolation.")
+@click.option("--budget-s", type=float, default=100.0, show_default=True, help="Time budget of the query (s).")
+@click.option("--scenario", "scenario_path", type=click.Path(dir_okay=False), default=None,
+              help="Scenario file, if it moved since the build.")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None, help="Write the plan JSON here.")
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), default=None, help="Also write the samples as CSV.")
+@user_errors
+def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget_s: float,
+          scenario_path: str | None, out_path: str | None, csv_path: str | None) -> None:
+    """Turn an observed target state into a verified plan from a look-up table.
+
+    Exit code 0: feasible; 2: infeasible (violations printed); 1: bad input, table or state.
+    """
+    import numpy as np
+
+    from lut.export import plan_document, write_csv, write_json
+    from lut.query import TableQuery
+    from planner.errors import LutgenError
+    from planner.target import TargetState
+    from planner.verify import summary_lines
+
+    if not budget_s > 0:
+        raise LutgenError(f"--budget-s: must be > 0, got {budget_s}")
+    quat = _floats(attitude, 4, "--attitude")
+    omega = np.radians(_floats(omega_deg_s, 3, "--omega-deg-s"))
+    state = TargetState(np.asarray(quat), omega)
+    tq = TableQuery(table_path, scenario_path)
+    result = tq.query(state, budget_s=budget_s, refine=refine)
+    for line in _plan_table(result.plan, result.report):
+        click.echo(line)
+    for line in summary_lines(result.report):
+        click.echo(line)
+    lat = result.latency_s
+    click.echo(f"source {result.source} (corners {result.corners_used}); table load {tq.load_time_s:.2f} s; "
+               + ", ".join(f"{k[:-2]} {v * 1e3:.1f} ms" for k, v in lat.items()))
+    if out_path:
+        write_json(out_path, plan_document(result.plan, result.report))
+        click.echo(f"wrote {out_path}")
+    if csv_path:
+        write_csv(csv_path, result.plan, result.report)
+        click.echo(f"wrote {csv_path}")
+    if not result.report.feasible:
+        click.echo("INFEASIBLE: " + "; ".join(result.report.violations), err=True)
+        sys.exit(2)
+    click.echo("FEASIBLE")
+
+
+if __name__ == "__main__":
+    main()

@@ -31,6 +31,14 @@ SAMPLE_STEP_S = 0.01  # dense re-simulation step of the approach and stabilizati
 TIGHTENING_ROUNDS = 2
 
 
+@dataclass(frozen=True)
+class WarmStart:
+    """Decision parameters that seed (or, in :meth:`Planner.simulate`, define) a plan."""
+
+    approach: ApproachSolution
+    stabilization_params: Array | None = None
+
+
 @dataclass
 class GraspPlan:
     """One planned grasp: decision parameters, dense trajectory, metrics, solver statistics (SI)."""
@@ -56,6 +64,9 @@ class GraspPlan:
     def t_grasp(self) -> float:
         return self.phases["tracking"][1]
 
+    def as_warm_start(self) -> WarmStart:
+        return WarmStart(self.approach, self.stabilization.params)
+
 
 class Planner:
     """The symbolic problems of one scenario, built once; :meth:`plan` solves one target state."""
@@ -75,18 +86,16 @@ class Planner:
             self._stabilization = {key: StabilizationProblem(self.scenario, T_ee_target)}
         return self._stabilization[key]
 
-    def plan(self, state: TargetState, warm_start: GraspPlan | None = None) -> GraspPlan:
+    def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs."""
         sc = self.scenario
-        timings: dict[str, float] = {}
         t_start = time.perf_counter()
-        app = self.approach.solve(state, warm_start.approach if warm_start is not None else None)
-        tf1, tf2, tf3 = sc.phases.approach_s, sc.phases.tracking_s, sc.phases.stabilization_s
-        motion = target_motion(sc, state, sc.phases.max_start_delay_s + tf1 + tf2 + tf3 + 1.0)
+        warm = warm_start.as_warm_start() if isinstance(warm_start, GraspPlan) else warm_start
+        app = self.approach.solve(state, warm.approach if warm is not None else None)
+        motion = self._motion(state)
         notes: list[str] = []
         for round_ in range(TIGHTENING_ROUNDS + 1):
-            t_app, q_app, qd_app, x_app = self._approach_samples(app)
-            tr = self.tracking.simulate(motion, app.start_delay_s + tf1, q_app[-1], x_app[-1], app.q_tracking)
+            approach_samples, tr = self._approach_and_tracking(app, motion)
             ratio = float((np.abs(tr.qd) / sc.robot.qd_max).max())
             if ratio <= 1.0 or round_ == TIGHTENING_ROUNDS or not app.success:
                 break
@@ -97,14 +106,55 @@ class Planner:
             if not retry.success:
                 break
             app = replace_timing(retry, app)
-        timings["approach_s"] = app.solve_time_s
-        timings["tracking_s"] = 0.0
-        t_tr = time.perf_counter()
         grasp, T_body_grasp_used = self._grasp_state(tr, motion)
-        timings["tracking_s"] = time.perf_counter() - t_tr
         stab_problem = self.stabilization_problem(grasp.T_ee_target, tr.free_axis_angle_rad)
-        stab = stab_problem.solve(grasp, warm_start.stabilization.params if warm_start is not None else None)
-        timings["stabilization_s"] = stab.solve_time_s + stab.build_time_s
+        stab = stab_problem.solve(grasp, warm.stabilization_params if warm is not None else None)
+        timings = {"approach_s": app.solve_time_s, "stabilization_s": stab.solve_time_s + stab.build_time_s}
+        plan = self._assemble(state, app, approach_samples, tr, grasp, T_body_grasp_used, stab_problem, stab,
+                              timings, notes)
+        plan.timings_s["total_s"] = time.perf_counter() - t_start
+        return plan
+
+    def simulate(self, state: TargetState, warm: WarmStart) -> GraspPlan:
+        """The plan that given parameters produce for ``state``, without solving (table queries).
+
+        The approach parameters are used as they are; the tracking IK runs from where they end; the
+        stabilization parameters are applied to Eq. 24 from the actual grasp state. ``verify`` decides.
+        """
+        t_start = time.perf_counter()
+        motion = self._motion(state)
+        app = warm.approach
+        approach_samples, tr = self._approach_and_tracking(app, motion)
+        grasp, T_body_grasp_used = self._grasp_state(tr, motion)
+        stab_problem = self.stabilization_problem(grasp.T_ee_target, tr.free_axis_angle_rad)
+        params = warm.stabilization_params
+        if params is None:
+            params = stab_problem.initial_params(grasp)
+        stab = StabilizationSolution(np.asarray(params, dtype=float), True, "given", 0, 0.0, stab_problem.build_time_s,
+                                     0.0, float("nan"), float("nan"))
+        plan = self._assemble(state, app, approach_samples, tr, grasp, T_body_grasp_used, stab_problem, stab,
+                              {"approach_s": 0.0, "stabilization_s": 0.0}, ["simulated from given parameters"])
+        plan.timings_s["total_s"] = time.perf_counter() - t_start
+        return plan
+
+    def _motion(self, state: TargetState) -> TargetMotion:
+        ph = self.scenario.phases
+        return target_motion(self.scenario, state,
+                             ph.max_start_delay_s + ph.approach_s + ph.tracking_s + ph.stabilization_s + 1.0)
+
+    def _approach_and_tracking(self, app: ApproachSolution, motion: TargetMotion) -> tuple[tuple, TrackingResult]:
+        samples = self._approach_samples(app)
+        _, q_app, _, x_app = samples
+        tr = self.tracking.simulate(motion, app.start_delay_s + self.scenario.phases.approach_s, q_app[-1],
+                                    x_app[-1], app.q_tracking)
+        return samples, tr
+
+    def _assemble(self, state: TargetState, app: ApproachSolution, approach_samples: tuple, tr: TrackingResult,
+                  grasp: GraspState, T_body_grasp_used: Array, stab_problem: StabilizationProblem,
+                  stab: StabilizationSolution, timings: dict[str, float], notes: list[str]) -> GraspPlan:
+        sc = self.scenario
+        tf1, tf2, tf3 = sc.phases.approach_s, sc.phases.tracking_s, sc.phases.stabilization_s
+        t_app, q_app, qd_app, x_app = approach_samples
         t_st, q_st, qd_st, x_st = self._stabilization_samples(stab_problem, stab, grasp)
         t0 = app.start_delay_s
         phases = {"approach": (t0, t0 + tf1), "tracking": (t0 + tf1, t0 + tf1 + tf2),
@@ -114,9 +164,8 @@ class Planner:
         qd = np.vstack([qd_app, tr.qd[1:], qd_st[1:]])
         x = np.vstack([x_app, tr.x_base[1:], x_st[1:]])
         phase_index = np.concatenate([np.zeros(len(t_app)), np.ones(len(tr.t) - 1), np.full(len(t_st) - 1, 2)])
-        timings["total_s"] = time.perf_counter() - t_start
         return GraspPlan(sc, state, app, tr, stab, grasp, T_body_grasp_used, phases, t, q, qd, x,
-                         phase_index.astype(int), timings, app.success and stab.success, notes)
+                         phase_index.astype(int), dict(timings), app.success and stab.success, notes)
 
     # ---- dense re-simulation -----------------------------------------------------------------
 

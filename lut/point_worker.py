@@ -1,0 +1,86 @@
+"""Solve one grid point in its own process: ``python -m lut.point_worker SOLVER IN.npz OUT.npz``.
+
+A build runs every point in a child process so that a point that exceeds its time limit can be
+killed, and a point that crashes (segfault, out of memory) takes down only itself: both are recorded
+as failed with the reason and the build goes on. Inputs and outputs are ``.npz`` files read with
+``allow_pickle=False``; the output is written atomically (temp + rename).
+
+``SOLVER`` is ``module:function`` with the signature of :func:`solve_point` (tests substitute a fast
+stand-in; the product always uses this module's own).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lut.records import Record, failed_record, record_from_plan, warm_start_from_record
+
+_PLANNERS: dict[str, Any] = {}
+
+
+def solve_point(scenario_path: str, point: int, attitude_wxyz: np.ndarray, omega_body_rad_s: np.ndarray,
+                warm: Record | None, warm_shift_s: float) -> Record:
+    """Plan and verify one target state; warm-started from a neighbour's record when given."""
+    from planner.plan import Planner
+    from planner.scenario import load_scenario
+    from planner.target import TargetState
+    from planner.verify import verify
+
+    if scenario_path not in _PLANNERS:
+        _PLANNERS[scenario_path] = Planner(load_scenario(scenario_path))
+    planner = _PLANNERS[scenario_path]
+    state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
+    warm_start = None
+    if warm is not None:
+        rate = float(np.linalg.norm(omega_body_rad_s))
+        period = 2 * np.pi / rate if rate > 0 else None
+        warm_start = warm_start_from_record(warm, warm_shift_s, planner.scenario.phases.max_start_delay_s, period)
+    t0 = time.perf_counter()
+    plan = planner.plan(state, warm_start)
+    report = verify(plan)
+    rec = record_from_plan(point, plan, report)
+    rec["solve_time_s"] = time.perf_counter() - t0
+    return rec
+
+
+def save_npz(path: Path, data: dict[str, Any]) -> None:
+    """Write ``data`` (numbers, arrays, strings) as .npz atomically."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        np.savez(fh, **{k: np.asarray(v) for k, v in data.items()})
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def load_npz(path: Path) -> dict[str, Any]:
+    """Read an .npz written by :func:`save_npz` (0-d arrays become Python scalars/strings)."""
+    with np.load(path, allow_pickle=False) as z:
+        return {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
+
+
+def main(argv: list[str]) -> int:
+    solver_spec, in_path, out_path = argv
+    module, _, name = solver_spec.partition(":")
+    solver = getattr(importlib.import_module(module), name)
+    args = load_npz(Path(in_path))
+    warm = {k[5:]: v for k, v in args.items() if k.startswith("warm/")} or None
+    point = int(args["point"])
+    try:
+        rec = solver(str(args["scenario_path"]), point, args["attitude_wxyz"], args["omega_body_rad_s"], warm,
+                     float(args["warm_shift_s"]))
+    except Exception as exc:  # a failure of this point only: recorded, the build goes on
+        rec = failed_record(point, f"{type(exc).__name__}: {exc}".splitlines()[0])
+    save_npz(Path(out_path), rec)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,170 @@
+"""``lutgen query``: observed target state → table lookup → interpolation → verify → refine (DESIGN §6).
+
+1. The state is mapped to grid coordinates (flat spin: rate, spin-axis angle, phase) and its cell.
+2. The feasible corners of the cell are interpolated — only mutually consistent ones: their meeting
+   times, carried to the query's phase by the flat-spin symmetry, agree within
+   :data:`CONSISTENT_DELAY_S` (corners in different local minima are not averaged). Without a feasible
+   corner the nearest feasible point of the table is used.
+3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
+   actual grasp state) and verified densely.
+4. If that is not feasible, or refinement was asked for, a warm-started solve runs within what is left
+   of the time budget; the better verified plan is returned.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from lut.build import table_hash
+from lut.grid import Grid, load_grid_text
+from lut.records import PARAMETER_KEYS, Record, warm_start_from_record
+from lut.store import Table, TableError
+from planner.errors import LutgenError
+from planner.plan import GraspPlan, Planner
+from planner.scenario import Scenario, load_scenario
+from planner.target import TargetState
+from planner.verify import VerifyReport, verify
+
+CONSISTENT_DELAY_S = 3.0
+PERIOD_FREE = float("inf")
+
+
+@dataclass
+class QueryResult:
+    plan: GraspPlan
+    report: VerifyReport
+    source: str  # "interpolated", "nearest", "refined"
+    corners_used: list[int]
+    latency_s: dict[str, float] = field(default_factory=dict)
+
+
+class TableQuery:
+    """A table opened for queries: its grid, records and the planner of its scenario (built once)."""
+
+    def __init__(self, table_path: str | Path, scenario_path: str | Path | None = None) -> None:
+        t0 = time.perf_counter()
+        self.table = Table.open(table_path)
+        attrs = self.table.attrs
+        path = scenario_path or attrs.get("scenario_path")
+        if not path:
+            raise TableError(f"{table_path}: the table does not name its scenario; pass --scenario")
+        self.scenario: Scenario = load_scenario(path)
+        self.table.check_model(table_hash(self.scenario), str(path))
+        default = TargetState(np.asarray(self.scenario.target_state.attitude_wxyz),
+                              np.asarray(self.scenario.target_state.omega_body_rad_s))
+        config = load_grid_text(attrs["config_text"], str(table_path), Path(path))
+        self.grid = Grid(config, self.scenario.target.inertia_body_kg_m2, default)
+        if self.grid.n_points != self.table.n_points:
+            raise TableError(f"{table_path}: grid has {self.grid.n_points} points but the table {self.table.n_points}")
+        self.records = {p: self.table.record(p) for p in range(self.table.n_points)}
+        self.feasible = [p for p, r in self.records.items() if r.get("status") == "feasible"]
+        self.planner = Planner(self.scenario)
+        self.load_time_s = time.perf_counter() - t0
+
+    # ---- lookup + interpolation ------------------------------------------------------------
+
+    def interpolate(self, state: TargetState) -> tuple[Record | None, list[int], str]:
+        """Interpolated parameter record for ``state`` (or the nearest feasible one), corners used."""
+        coords = self.grid.coordinates_of_state(state)
+        cell = self.grid.locate(coords)
+        rate = float(np.linalg.norm(state.omega_body_rad_s))
+        period = 2 * np.pi / rate if rate > 0 else PERIOD_FREE
+        candidates = []
+        for corner, weight in zip(cell.corners, cell.weights, strict=True):
+            rec = self.records[corner]
+            if rec.get("status") != "feasible" or weight <= 0:
+                continue
+            tau = float(rec["start_delay_s"]) + self._phase_shift(corner, coords)
+            candidates.append((corner, float(weight), tau % period if np.isfinite(period) else tau, rec))
+        if candidates:
+            # the largest-weight group of corners whose meeting times agree
+            best_group: list = []
+            for _, _, tau_ref, _ in candidates:
+                group = [c for c in candidates if _circular_gap(c[2], tau_ref, period) <= CONSISTENT_DELAY_S]
+                if sum(c[1] for c in group) > sum(c[1] for c in best_group):
+                    best_group = group
+            w = np.array([c[1] for c in best_group])
+            w = w / w.sum()
+            ref_tau = best_group[int(np.argmax(w))][2]
+            rec: Record = {"status": "feasible"}
+            for key in PARAMETER_KEYS:
+                if key == "start_delay_s":
+                    taus = np.array([ref_tau + _signed_gap(c[2], ref_tau, period) for c in best_group])
+                    rec[key] = float(w @ taus)
+                else:
+                    rec[key] = sum(wi * np.asarray(c[3][key], dtype=float) for wi, c in zip(w, best_group, strict=True))
+            return rec, [c[0] for c in best_group], "interpolated"
+        if not self.feasible:
+            return None, [], "none"
+        nearest = min(self.feasible, key=lambda p: self.grid.normalised_distance(self.grid.coordinates(p), coords))
+        rec = dict(self.records[nearest])
+        rec["start_delay_s"] = float(rec["start_delay_s"]) + self._phase_shift(nearest, coords)
+        return rec, [nearest], "nearest"
+
+    def _phase_shift(self, point: int, coords: np.ndarray) -> float:
+        names = self.grid.axis_names
+        if "spin_phase_deg" not in names:
+            return 0.0
+        i = names.index("spin_phase_deg")
+        rate = coords[names.index("spin_rate_deg_s")] if "spin_rate_deg_s" in names else None
+        if rate is None or rate <= 0:
+            return 0.0
+        return -(coords[i] - self.grid.coordinates(point)[i]) / rate
+
+    # ---- the whole query ---------------------------------------------------------------------
+
+    def query(self, state: TargetState, budget_s: float = 100.0, refine: bool = False) -> QueryResult:
+        t_start = time.perf_counter()
+        latency: dict[str, float] = {}
+        rec, corners, source = self.interpolate(state)
+        latency["lookup_interpolate_s"] = time.perf_counter() - t_start
+        plan = report = None
+        if rec is not None:
+            t0 = time.perf_counter()
+            rate = float(np.linalg.norm(state.omega_body_rad_s))
+            warm = warm_start_from_record(rec, 0.0, self.scenario.phases.max_start_delay_s,
+                                          2 * np.pi / rate if rate > 0 else None)
+            plan = self.planner.simulate(state, warm)
+            latency["simulate_s"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            report = verify(plan)
+            latency["verify_s"] = time.perf_counter() - t0
+        remaining = budget_s - (time.perf_counter() - t_start)
+        if (report is None or not report.feasible or refine) and remaining > 5.0:
+            t0 = time.perf_counter()
+            refined_plan, refined_report = self._refine(state, plan, remaining - 3.0)
+            latency["refine_s"] = time.perf_counter() - t0
+            if refined_report is not None and (report is None or refined_report.feasible or not report.feasible):
+                plan, report, source = refined_plan, refined_report, "refined"
+        if plan is None or report is None:
+            raise LutgenError("no feasible point in the table and no time left to solve")
+        latency["total_s"] = time.perf_counter() - t_start
+        return QueryResult(plan, report, source, corners, latency)
+
+    def _refine(self, state: TargetState, plan: GraspPlan | None, budget_s: float):  # noqa: ANN202
+        """A warm-started solve with each NLP capped so the whole stays inside ``budget_s``."""
+        sc = self.scenario
+        per_nlp = max(1.0, 0.45 * budget_s)
+        capped = replace(sc, solver=replace(sc.solver, max_wall_s=min(sc.solver.max_wall_s, per_nlp)))
+        planner = Planner(capped)
+        try:
+            refined = planner.plan(state, plan.as_warm_start() if plan is not None else None)
+        except LutgenError:
+            return None, None
+        return refined, verify(refined)
+
+
+def _circular_gap(a: float, b: float, period: float) -> float:
+    return abs(_signed_gap(a, b, period))
+
+
+def _signed_gap(a: float, b: float, period: float) -> float:
+    """a − b wrapped into (−period/2, period/2] (plain difference when the period is infinite)."""
+    d = a - b
+    if np.isfinite(period):
+        d = (d + period / 2) % period - period / 2
+    return d

@@ -1,0 +1,73 @@
+"""One grid point's result as a flat record (``"/"``-separated keys → numbers, arrays, strings).
+
+Records travel from a point worker to the journal and into the HDF5 table; a feasible record is also
+the warm start of its neighbours and the material a query interpolates. No pickles anywhere.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from planner.phases.approach import ApproachSolution
+from planner.plan import GraspPlan, WarmStart
+from planner.verify import VerifyReport
+
+Record = dict[str, Any]
+
+# fields a query interpolates between corner points (all numeric parameter arrays)
+PARAMETER_KEYS = ("approach_params", "base_offset_m", "start_delay_s", "q_tracking", "stabilization_params")
+
+
+def record_from_plan(point: int, plan: GraspPlan, report: VerifyReport) -> Record:
+    """The table record of a solved, verified plan."""
+    rec: Record = {
+        "point": point,
+        "status": "feasible" if report.feasible else "infeasible",
+        "failure_reason": "; ".join(report.violations)[:2000],
+        "solve_time_s": float(plan.timings_s.get("total_s", np.nan)),
+        "iterations": int(plan.approach.iterations + plan.stabilization.iterations),
+        "approach_params": np.asarray(plan.approach.params, dtype=float),
+        "base_offset_m": np.asarray(plan.approach.base_offset_m, dtype=float),
+        "start_delay_s": float(plan.approach.start_delay_s),
+        "q_tracking": np.asarray(plan.approach.q_tracking, dtype=float),
+        "stabilization_params": np.asarray(plan.stabilization.params, dtype=float),
+        "free_axis_angle_rad": float(plan.tracking.free_axis_angle_rad),
+        "costs/approach_energy_m2": float(np.dot(plan.approach.base_offset_m, plan.approach.base_offset_m)),
+        "costs/min_distance_m": float(np.min(report.min_distance_m)),
+        "costs/peak_grasp_torque_nm": float(np.abs(report.grasp_wrench[:, 3:]).max()),
+    }
+    for name, check in report.checks.items():
+        rec[f"margins/{name}"] = float(check.margin)
+    return rec
+
+
+def failed_record(point: int, reason: str, solve_time_s: float = float("nan")) -> Record:
+    """A point that crashed or timed out: no parameters, the reason kept."""
+    return {"point": point, "status": "failed", "failure_reason": reason[:2000], "solve_time_s": float(solve_time_s),
+            "iterations": 0}
+
+
+def warm_start_from_record(rec: Record, start_delay_shift_s: float = 0.0, max_delay_s: float | None = None,
+                           period_s: float | None = None) -> WarmStart:
+    """A :class:`WarmStart` from a (feasible) record.
+
+    ``start_delay_shift_s`` applies the flat-spin phase ↔ time symmetry: a target whose spin phase is
+    ahead by Δφ reaches the same configuration Δφ/rate earlier. The delay is wrapped by the spin period
+    into [0, max_delay_s] when both are given.
+    """
+    tau = float(rec["start_delay_s"]) + start_delay_shift_s
+    if period_s is not None and max_delay_s is not None and np.isfinite(period_s) and period_s > 0:
+        tau = tau % period_s
+        if tau > max_delay_s:
+            tau = min(max_delay_s, max(0.0, tau - period_s)) if tau - period_s >= 0 else max_delay_s
+    approach = ApproachSolution(
+        params=np.asarray(rec["approach_params"], dtype=float),
+        base_offset_m=np.asarray(rec["base_offset_m"], dtype=float),
+        start_delay_s=tau,
+        q_tracking=np.asarray(rec["q_tracking"], dtype=float),
+        success=True, status="from table", iterations=0, solve_time_s=0.0, cost=float("nan"),
+        min_distance_m=float("nan"),
+    )
+    return WarmStart(approach, np.asarray(rec["stabilization_params"], dtype=float))

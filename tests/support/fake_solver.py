@@ -1,0 +1,36 @@
+"""A fast, deterministic stand-in for the grid-point solver, for build tests (no NLP).
+
+Its record is a fixed function of the target state and of the warm start (so continuation order
+matters, as with the real planner). Fault injection through environment variables, read only here:
+``LUTGEN_FAKE_RAISE=<point>`` raises, ``LUTGEN_FAKE_HANG=<point>`` sleeps far past any timeout,
+``LUTGEN_FAKE_CRASH=<point>`` kills its own process, ``LUTGEN_FAKE_SLEEP_S`` slows every point.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+
+
+def solve(scenario_path: str, point: int, attitude_wxyz, omega_body_rad_s, warm, warm_shift_s: float) -> dict:  # noqa: ANN001
+    if os.environ.get("LUTGEN_FAKE_RAISE") == str(point):
+        raise RuntimeError(f"injected failure at point {point}")
+    if os.environ.get("LUTGEN_FAKE_HANG") == str(point):
+        time.sleep(3600)
+    if os.environ.get("LUTGEN_FAKE_CRASH") == str(point):
+        os.kill(os.getpid(), signal.SIGKILL)
+    time.sleep(float(os.environ.get("LUTGEN_FAKE_SLEEP_S", "0")))
+    seed = np.concatenate([np.asarray(attitude_wxyz, float), np.asarray(omega_body_rad_s, float)])
+    base = np.sin(np.arange(1, 36) * seed.sum())
+    if warm is not None:
+        base = base + 1e-3 * np.asarray(warm["approach_params"], float)
+    return {
+        "point": point, "status": "feasible", "failure_reason": "", "solve_time_s": 0.0, "iterations": 7,
+        "approach_params": base, "base_offset_m": seed[1:3].copy(), "start_delay_s": float(10 + point + warm_shift_s),
+        "q_tracking": np.outer(np.arange(3), seed[:7]), "stabilization_params": base[::-1].copy(),
+        "free_axis_angle_rad": 0.0, "costs/min_distance_m": 0.1, "costs/approach_energy_m2": 0.0,
+        "costs/peak_grasp_torque_nm": 1.0, "margins/collision": 0.05,
+    }
