@@ -7,7 +7,8 @@
 * **Isolation.** Each point runs in its own child process (:mod:`lut.point_worker`) with a hard
   time limit: a point that times out or crashes its process is recorded as failed with the reason.
 * **Crash safety.** Every finished point is appended to a checksummed journal beside the output at
-  once; ``--resume`` skips what the journal holds. The HDF5 table is assembled at the end atomically.
+  once; ``--resume`` skips what the journal holds. The HDF5 table is assembled at the end atomically;
+  once it holds every point, the journal is removed.
 * **Parallelism.** joblib: ``loky`` locally, or ``dask`` with a ``distributed`` scheduler address for
   a cluster (the workers need lutgen installed and the config files at the same paths).
 * **Determinism.** Same config ⇒ same warm-start tree ⇒ same table (up to points that hit the time
@@ -16,6 +17,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import tempfile
@@ -191,9 +193,13 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
             client.close()
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
                 grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
-                records=done, n_points=grid.n_points, scenario_path=str(config.scenario_path))
+                records=done, n_points=grid.n_points,
+                scenario_path=os.path.relpath(config.scenario_path, table_path.absolute().parent))
     counts = {name: sum(1 for r in done.values() if r["status"] == name) for name in STATUS_CODES}
     counts["pending"] = grid.n_points - len(done)
+    if counts["pending"] == 0:
+        # the table now holds every point durably; a leftover journal would only block the next build
+        jpath.unlink(missing_ok=True)
     failures = [f"point {p}: {r['failure_reason']}" for p, r in sorted(done.items()) if r["status"] == "failed"]
     return BuildSummary(table_path, grid.n_points, counts, solved_now, time.perf_counter() - t_start, failures)
 

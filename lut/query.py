@@ -49,9 +49,15 @@ class TableQuery:
         t0 = time.perf_counter()
         self.table = Table.open(table_path)
         attrs = self.table.attrs
-        path = scenario_path or attrs.get("scenario_path")
-        if not path:
-            raise TableError(f"{table_path}: the table does not name its scenario; pass --scenario")
+        path = scenario_path
+        if path is None:
+            stored = attrs.get("scenario_path")
+            if not stored:
+                raise TableError(f"{table_path}: the table does not name its scenario; pass --scenario")
+            path = Path(table_path).absolute().parent / stored  # stored relative to the table's folder
+            if not path.is_file():
+                raise TableError(f"{table_path}: its scenario {stored} (relative to the table) is not there; "
+                                 "pass --scenario")
         self.scenario: Scenario = load_scenario(path)
         self.table.check_model(table_hash(self.scenario), str(path))
         default = TargetState(np.asarray(self.scenario.target_state.attitude_wxyz),

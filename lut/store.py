@@ -3,7 +3,8 @@
 Root attributes
     ``schema_version`` (int, :data:`SCHEMA_VERSION`), ``lutgen_version``, ``config_text`` (the grid
     config's text), ``scenario_text``, ``model_hash`` (:func:`model_hash` of robot URDF + target +
-    scenario), ``created_utc`` (ISO 8601), ``grid_kind``; ``scenario_path`` when the writer gave one.
+    scenario), ``created_utc`` (ISO 8601), ``grid_kind``; ``scenario_path`` when the writer gave one (``lutgen build``
+    writes it relative to the table's folder, so a table and its configs can move together).
 Group ``grid/``
     one 1-D float64 dataset per axis (its values); attribute ``axis_names`` (ordered list of str).
 Group ``points/`` — arrays over the flat point index ``0 … n_points-1``

@@ -19,7 +19,31 @@ ROOT = Path(__file__).resolve().parents[1]
 GRIDS = ROOT / "configs" / "grids"
 SCEN_I = ROOT / "configs" / "scenarios" / "scenario_I.toml"
 SCEN_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
-BUNDLED = {"ci": 4, "demo": 24, "flat_spin": 1092, "tumble": 1125}
+BUNDLED = {"ci": 4, "demo": 12, "flat_spin": 1092, "tumble": 1125}
+# a three-axis flat-spin grid (3 rates × 2 spin-axis angles × 4 phases) owned by the tests
+THREE_AXES = """
+name = "three_axes"
+scenario = "../scenarios/scenario_II.toml"
+kind = "flat_spin"
+
+[[axes]]
+name = "spin_rate_deg_s"
+min = 3.0
+max = 4.0
+count = 3
+
+[[axes]]
+name = "spin_axis_angle_deg"
+min = 80.0
+max = 90.0
+count = 2
+
+[[axes]]
+name = "spin_phase_deg"
+min = 0.0
+max = 30.0
+count = 4
+"""
 
 
 def _default(scenario) -> TargetState:
@@ -38,6 +62,8 @@ def grids(scenarios):
         config = load_grid(GRIDS / f"{name}.toml")
         sc = scenarios[config.scenario_path]
         out[name] = Grid(config, sc.target.inertia_body_kg_m2, _default(sc))
+    config = load_grid_text(THREE_AXES, str(GRIDS / "three_axes.toml"))
+    out["three_axes"] = Grid(config, scenarios[SCEN_II].target.inertia_body_kg_m2, _default(scenarios[SCEN_II]))
     return out
 
 
@@ -149,7 +175,7 @@ def test_load_grid_text_resolves_or_overrides_the_scenario(tmp_path):
 
 
 def test_flat_indices_are_c_order(grids):
-    g = grids["demo"]
+    g = grids["three_axes"]
     assert g.index_of(0) == (0, 0, 0) and g.index_of(1) == (0, 0, 1) and g.index_of(23) == (2, 1, 3)
     assert all(g.flat_of(g.index_of(p)) == p for p in range(g.n_points))
     np.testing.assert_array_equal(g.coordinates(g.flat_of((1, 0, 2))), [3.5, 80.0, 20.0])
@@ -159,7 +185,7 @@ def test_flat_indices_are_c_order(grids):
         g.flat_of((3, 0, 0))
 
 
-@pytest.mark.parametrize("name", ["demo", "tumble", "flat_spin"])
+@pytest.mark.parametrize("name", ["demo", "three_axes", "tumble", "flat_spin"])
 def test_state_to_coordinates_round_trip_on_every_point(grids, name):
     g = grids[name]
     for p in range(g.n_points):
@@ -216,7 +242,7 @@ def test_flat_spin_with_a_rotated_principal_frame():
 
 
 def test_states_that_are_not_grid_flat_spins_are_rejected(grids, scenarios):
-    g = grids["demo"]
+    g = grids["three_axes"]
     q0 = np.array([1.0, 0.0, 0.0, 0.0])
     rate = np.radians(4.0)
     # within the 1e-6 rad tolerance: accepted
@@ -238,7 +264,7 @@ def test_states_that_are_not_grid_flat_spins_are_rejected(grids, scenarios):
 
 
 def test_angles_are_taken_in_the_axis_window(grids):
-    g = grids["demo"]
+    g = grids["three_axes"]
     # a state of phase -20° is phase 340° (the window is [0, 360)); α is taken nearest the axis centre
     np.testing.assert_allclose(g.coordinates_of_state(g.state_at([3.2, 85.0 - 720.0, -20.0])), [3.2, 85.0, 340.0],
                                atol=1e-9)
@@ -263,7 +289,7 @@ def test_phase_time_shift_values():
 
 
 def test_a_phase_offset_is_a_time_shift(grids):
-    g = grids["demo"]
+    g = grids["three_axes"]
     for p in range(g.n_points):
         rate, alpha, phi0 = g.coordinates(p)
         for phi1 in (0.0, 10.0, 30.0, 200.0, phi0):
@@ -300,7 +326,7 @@ def _check_cell(g: Grid, coords) -> None:
 
 def test_locate_interpolates_inside_cells(grids):
     rng = np.random.default_rng(7)
-    g = grids["demo"]
+    g = grids["three_axes"]
     for _ in range(200):
         _check_cell(g, [rng.uniform(3, 4), rng.uniform(80, 90), rng.uniform(-720, 720)])
     t = grids["tumble"]
@@ -314,7 +340,7 @@ def test_locate_interpolates_inside_cells(grids):
 
 
 def test_locate_wraps_the_phase(grids):
-    g = grids["demo"]  # phases 0, 10, 20, 30: between 30 and 360 the cell wraps to 0
+    g = grids["three_axes"]  # phases 0, 10, 20, 30: between 30 and 360 the cell wraps to 0
     cell = g.locate([3.5, 90.0, 200.0])
     phases = {g.coordinates(c)[2] for c in cell.corners}
     assert phases == {30.0, 0.0}
@@ -326,7 +352,7 @@ def test_locate_wraps_the_phase(grids):
 
 
 def test_locate_outside_the_grid_names_the_axis(grids):
-    g = grids["demo"]
+    g = grids["three_axes"]
     with pytest.raises(TargetStateError, match=r"outside the grid: spin_rate_deg_s = 5.2 not in \[3, 4\]"):
         g.locate([5.2, 85.0, 0.0])
     with pytest.raises(TargetStateError, match="spin_axis_angle_deg = 95 not in"):
@@ -345,7 +371,7 @@ def test_locate_outside_the_grid_names_the_axis(grids):
 
 
 def test_neighbours_are_axis_adjacent(grids):
-    g = grids["demo"]
+    g = grids["three_axes"]
     assert g.neighbours(g.flat_of((1, 0, 1))) == sorted(
         g.flat_of(i) for i in [(0, 0, 1), (2, 0, 1), (1, 1, 1), (1, 0, 0), (1, 0, 2)])
     assert g.flat_of((1, 0, 0)) not in g.neighbours(g.flat_of((1, 0, 3)))  # 30 → 0 is a 330° gap
