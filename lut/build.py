@@ -82,12 +82,18 @@ def prepare(grid_path: str | Path) -> tuple[GridConfig, Scenario, Grid]:
 
 
 def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: Record | None,
-              warm_shift_s: float, timeout_s: float) -> Record:
-    """Solve one point in a child process; timeouts and crashes become failed records."""
+              warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None) -> Record:
+    """Solve one point in a child process; timeouts and crashes become failed records.
+
+    ``max_wall_s`` (s), when given, lowers the per-NLP wall-time limit of the solve (see
+    :func:`lut.point_worker.solve_point`); ``timeout_s`` is the hard limit of the whole process.
+    """
     with tempfile.TemporaryDirectory(prefix="lutgen-point-") as tmp:
         in_path, out_path = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
         args = {"scenario_path": scenario_path, "point": point, "attitude_wxyz": state.attitude_wxyz,
                 "omega_body_rad_s": state.omega_body_rad_s, "warm_shift_s": warm_shift_s}
+        if max_wall_s is not None:
+            args["max_wall_s"] = max_wall_s
         if warm is not None:
             args.update({f"warm/{k}": v for k, v in warm.items()})
         save_npz(in_path, args)

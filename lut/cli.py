@@ -233,9 +233,15 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
 @main.command()
 @click.argument("table_path", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Also write maps of feasibility, costs and solve time over the grid axes (PNG) to DIR.")
 @user_errors
-def inspect(table_path: str, as_json: bool) -> None:
-    """Summarise a look-up table: grid, point counts, cost and solve-time statistics, model hash."""
+def inspect(table_path: str, as_json: bool, plot_dir: str | None) -> None:
+    """Summarise a look-up table: grid, point counts, cost and solve-time statistics, model hash.
+
+    With --plot DIR: heatmaps over two grid axes (small multiples over a third and beyond; a line plot
+    for one axis) of feasibility, each cost and the solve time.
+    """
     import json
 
     import numpy as np
@@ -263,9 +269,18 @@ def inspect(table_path: str, as_json: bool) -> None:
                   ("min_distance_m", "approach_energy_m2", "peak_grasp_torque_nm")
                   if table.has_field(f"costs/{key}")},
     }
+    if plot_dir is not None:
+        from lut.coverage_plots import write_coverage_maps
+
+        try:
+            info["plots"] = [str(p) for p in write_coverage_maps(table, plot_dir)]
+        except OSError as exc:
+            raise LutgenError(f"{plot_dir}: cannot write ({exc.strerror or exc})") from None
     if as_json:
         click.echo(json.dumps(info, indent=1))
         return
+    for path in info.get("plots", []):
+        click.echo(f"wrote {path}")
     click.echo(f"table      {table_path} (schema {info['schema_version']}, model {info['model_hash'][:12]}…)")
     for name, values in info["axes"].items():
         click.echo(f"axis       {name}: {len(values)} values in [{min(values):g}, {max(values):g}]")
@@ -314,6 +329,8 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     lat = result.latency_s
     click.echo(f"source {result.source} (corners {result.corners_used}); table load {tq.load_time_s:.2f} s; "
                + ", ".join(f"{k[:-2]} {v * 1e3:.1f} ms" for k, v in lat.items()))
+    if tq.refine_failure:
+        click.echo(f"refine did not finish: {tq.refine_failure}", err=True)
     if out_path:
         write_json(out_path, plan_document(result.plan, result.report))
         click.echo(f"wrote {out_path}")
@@ -328,3 +345,9 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
 
 if __name__ == "__main__":
     main()
+
+
+# plot and preview live in their own module (matplotlib/plotly are imported only when they run)
+from lut.cli_view import register  # noqa: E402
+
+register(main)

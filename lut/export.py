@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from planner.costs import approach_energy
+from planner.geometry import Box
 from planner.plan import GraspPlan
 from planner.rotation import matrix_to_quat
 from planner.verify import VerifyReport
@@ -72,7 +73,28 @@ def plan_samples(plan: GraspPlan, report: VerifyReport) -> dict[str, np.ndarray]
         "grasp_position": report.grasp_pose[0], "grasp_wxyz": report.grasp_pose[1],
         "target_position": report.target_pose[0], "target_wxyz": report.target_pose[1],
         "grasp_wrench": report.grasp_wrench,
+        "min_distance_m": report.min_distance_m,
+        "closest_points_m": report.closest_points_m,
     }
+
+
+def target_shapes(plan: GraspPlan) -> list[dict[str, Any]]:
+    """The target's collision shapes in its body frame (for the preview): boxes ``size_m`` [3] (full edge
+    lengths), capsules ``radius_m``/``length_m`` (segment along the shape's z), ``handle`` marks the grasped
+    part."""
+    target = plan.scenario.target
+    out: list[dict[str, Any]] = []
+    for placed in target.shapes:
+        T = placed.T_body_shape
+        entry: dict[str, Any] = {"name": placed.name}
+        if isinstance(placed.shape, Box):
+            entry.update(kind="box", size_m=[float(v) for v in placed.shape.size_m])
+        else:
+            entry.update(kind="capsule", radius_m=float(placed.shape.radius_m), length_m=float(placed.shape.length_m))
+        entry.update(position_m=T[:3, 3].tolist(), wxyz=matrix_to_quat(T[:3, :3]).tolist(),
+                     handle=placed.name in target.handle_shapes)
+        out.append(entry)
+    return out
 
 
 def plan_document(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
@@ -93,10 +115,12 @@ def plan_document(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
             "attitude_wxyz": np.asarray(plan.target_state.attitude_wxyz).tolist(),
             "omega_body_rad_s": np.asarray(plan.target_state.omega_body_rad_s).tolist(),
             "grasp_in_body": {"position": T[:3, 3].tolist(), "wxyz": matrix_to_quat(T[:3, :3]).tolist()},
+            "shapes": target_shapes(plan),
         },
         "phases": {name: [float(a), float(b)] for name, (a, b) in plan.phases.items()},
         "metrics": plan_metrics(plan, report),
-        "samples": {key: np.asarray(v).tolist() for key, v in samples.items()},
+        "samples": {**{key: np.asarray(v).tolist() for key, v in samples.items()},
+                    "closest_pair": list(report.closest_pair)},
     }
 
 
@@ -110,7 +134,7 @@ def write_json(path: str | Path, document: dict[str, Any]) -> None:
 
 CSV_COLUMNS = (("t", 1), ("q", 7), ("qd", 7), ("base_position", 3), ("base_wxyz", 4), ("ee_position", 3),
                ("ee_wxyz", 4), ("grasp_position", 3), ("grasp_wxyz", 4), ("target_position", 3),
-               ("target_wxyz", 4), ("grasp_wrench", 6))
+               ("target_wxyz", 4), ("grasp_wrench", 6), ("min_distance_m", 1))
 
 
 def write_csv(path: str | Path, plan: GraspPlan, report: VerifyReport) -> None:

@@ -26,16 +26,25 @@ _PLANNERS: dict[str, Any] = {}
 
 
 def solve_point(scenario_path: str, point: int, attitude_wxyz: np.ndarray, omega_body_rad_s: np.ndarray,
-                warm: Record | None, warm_shift_s: float) -> Record:
-    """Plan and verify one target state; warm-started from a neighbour's record when given."""
+                warm: Record | None, warm_shift_s: float, max_wall_s: float | None = None) -> Record:
+    """Plan and verify one target state; warm-started from a neighbour's record when given.
+
+    ``max_wall_s`` (s) lowers the scenario's per-NLP wall-time limit (a query's refine inside its budget).
+    """
+    from dataclasses import replace
+
     from planner.plan import Planner
     from planner.scenario import load_scenario
     from planner.target import TargetState
     from planner.verify import verify
 
-    if scenario_path not in _PLANNERS:
-        _PLANNERS[scenario_path] = Planner(load_scenario(scenario_path))
-    planner = _PLANNERS[scenario_path]
+    key = f"{scenario_path}|{max_wall_s}"
+    if key not in _PLANNERS:
+        sc = load_scenario(scenario_path)
+        if max_wall_s is not None:
+            sc = replace(sc, solver=replace(sc.solver, max_wall_s=min(sc.solver.max_wall_s, max_wall_s)))
+        _PLANNERS[key] = Planner(sc)
+    planner = _PLANNERS[key]
     state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
     warm_start = None
     if warm is not None:
@@ -73,9 +82,10 @@ def main(argv: list[str]) -> int:
     args = load_npz(Path(in_path))
     warm = {k[5:]: v for k, v in args.items() if k.startswith("warm/")} or None
     point = int(args["point"])
+    extra = {"max_wall_s": float(args["max_wall_s"])} if "max_wall_s" in args else {}
     try:
         rec = solver(str(args["scenario_path"]), point, args["attitude_wxyz"], args["omega_body_rad_s"], warm,
-                     float(args["warm_shift_s"]))
+                     float(args["warm_shift_s"]), **extra)
     except Exception as exc:  # a failure of this point only: recorded, the build goes on
         rec = failed_record(point, f"{type(exc).__name__}: {exc}".splitlines()[0])
     save_npz(Path(out_path), rec)

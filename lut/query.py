@@ -7,19 +7,20 @@
    corner the nearest feasible point of the table is used.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
    actual grasp state) and verified densely.
-4. If that is not feasible, or refinement was asked for, a warm-started solve runs within what is left
-   of the time budget; the better verified plan is returned.
+4. If that is not feasible, or refinement was asked for, a warm-started solve runs in a child process
+   within what is left of the time budget (killed at it); a feasible refined plan replaces the
+   interpolated one.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from lut.build import table_hash
+from lut.build import DEFAULT_SOLVER, run_point, table_hash
 from lut.grid import Grid, load_grid_text
 from lut.records import PARAMETER_KEYS, Record, warm_start_from_record
 from lut.store import Table, TableError
@@ -31,6 +32,8 @@ from planner.verify import VerifyReport, verify
 
 CONSISTENT_DELAY_S = 3.0
 PERIOD_FREE = float("inf")
+FINISH_RESERVE_S = 3.0  # kept back from the budget to re-simulate, verify and export a refined plan (s)
+MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started (s)
 
 
 @dataclass
@@ -68,7 +71,9 @@ class TableQuery:
             raise TableError(f"{table_path}: grid has {self.grid.n_points} points but the table {self.table.n_points}")
         self.records = {p: self.table.record(p) for p in range(self.table.n_points)}
         self.feasible = [p for p, r in self.records.items() if r.get("status") == "feasible"]
+        self.scenario_path = Path(path)
         self.planner = Planner(self.scenario)
+        self.refine_failure = ""
         self.load_time_s = time.perf_counter() - t0
 
     # ---- lookup + interpolation ------------------------------------------------------------
@@ -124,44 +129,61 @@ class TableQuery:
     # ---- the whole query ---------------------------------------------------------------------
 
     def query(self, state: TargetState, budget_s: float = 100.0, refine: bool = False) -> QueryResult:
+        """Lookup → interpolate → re-simulate + verify → refine if needed (or asked), within ``budget_s``.
+
+        The refine runs in a child process killed at the budget (less :data:`FINISH_RESERVE_S` to
+        re-simulate and verify its answer), so a query never overruns, whatever the solver does.
+        """
         t_start = time.perf_counter()
         latency: dict[str, float] = {}
         rec, corners, source = self.interpolate(state)
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
         plan = report = None
         if rec is not None:
+            plan, report = self._simulate_and_verify(state, rec, latency)
+        remaining = budget_s - (time.perf_counter() - t_start) - FINISH_RESERVE_S
+        if (report is None or not report.feasible or refine) and remaining >= MIN_REFINE_S:
             t0 = time.perf_counter()
-            rate = float(np.linalg.norm(state.omega_body_rad_s))
-            warm = warm_start_from_record(rec, 0.0, self.scenario.phases.max_start_delay_s,
-                                          2 * np.pi / rate if rate > 0 else None)
-            plan = self.planner.simulate(state, warm)
-            latency["simulate_s"] = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            report = verify(plan)
-            latency["verify_s"] = time.perf_counter() - t0
-        remaining = budget_s - (time.perf_counter() - t_start)
-        if (report is None or not report.feasible or refine) and remaining > 5.0:
-            t0 = time.perf_counter()
-            refined_plan, refined_report = self._refine(state, plan, remaining - 3.0)
+            refined = self._refine(state, rec, remaining)
             latency["refine_s"] = time.perf_counter() - t0
-            if refined_report is not None and (report is None or refined_report.feasible or not report.feasible):
-                plan, report, source = refined_plan, refined_report, "refined"
+            if refined.get("status") in ("feasible", "infeasible"):
+                new_plan, new_report = self._simulate_and_verify(state, refined, {})
+                if report is None or (new_report.feasible and (refine or not report.feasible)):
+                    plan, report, source = new_plan, new_report, "refined"
+            else:
+                self.refine_failure = str(refined.get("failure_reason", ""))
         if plan is None or report is None:
-            raise LutgenError("no feasible point in the table and no time left to solve")
+            raise LutgenError("the table has no feasible point and there was no time left to solve "
+                              f"(budget {budget_s:g} s)")
         latency["total_s"] = time.perf_counter() - t_start
         return QueryResult(plan, report, source, corners, latency)
 
-    def _refine(self, state: TargetState, plan: GraspPlan | None, budget_s: float):  # noqa: ANN202
-        """A warm-started solve with each NLP capped so the whole stays inside ``budget_s``."""
-        sc = self.scenario
-        per_nlp = max(1.0, 0.45 * budget_s)
-        capped = replace(sc, solver=replace(sc.solver, max_wall_s=min(sc.solver.max_wall_s, per_nlp)))
-        planner = Planner(capped)
-        try:
-            refined = planner.plan(state, plan.as_warm_start() if plan is not None else None)
-        except LutgenError:
-            return None, None
-        return refined, verify(refined)
+    def _simulate_and_verify(self, state: TargetState, rec: Record,
+                             latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:
+        t0 = time.perf_counter()
+        rate = float(np.linalg.norm(state.omega_body_rad_s))
+        warm = warm_start_from_record(rec, 0.0, self.scenario.phases.max_start_delay_s,
+                                      2 * np.pi / rate if rate > 0 else None)
+        plan = self.planner.simulate(state, warm)
+        latency["simulate_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        report = verify(plan)
+        latency["verify_s"] = time.perf_counter() - t0
+        return plan, report
+
+    def _refine(self, state: TargetState, rec: Record | None, budget_s: float) -> Record:
+        """A warm-started solve in a child process with a hard time limit of ``budget_s``.
+
+        Each NLP's own wall-time limit is a fraction of the budget so that a solve returns its best
+        iterate before the process is killed (approach, up to two rate-tightening re-solves and the
+        stabilization run one after another).
+        """
+        warm = None
+        if rec is not None:
+            warm = {key: rec[key] for key in PARAMETER_KEYS}
+            warm["status"] = "feasible"
+        return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
+                         max_wall_s=max(1.0, budget_s / 4))
 
 
 def _circular_gap(a: float, b: float, period: float) -> float:

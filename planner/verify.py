@@ -110,6 +110,8 @@ class VerifyReport:
     sample_index: Array  # index of each verified sample in the plan's arrays (plan.q[sample_index], …)
     phase_index: Array  # 0 approach, 1 tracking, 2 stabilization
     min_distance_m: Array  # smallest signed distance over all pairs, per sample
+    closest_pair: list[str]  # per sample: "A-B (shapeA/shapeB)", the pair with min_distance_m
+    closest_points_m: Array  # n×2×3 witness points of closest_pair (on A, on B), world frame
     grasp_wrench: Array  # n×6 [F (N); M (N·m)] on the target at the grasp point, ee frame; 0 before grasp
     ee_pose: PoseSamples  # scenario.robot.ee_frame, pinocchio FK
     grasp_pose: PoseSamples  # grasp frame on the target (free-axis angle applied)
@@ -169,7 +171,7 @@ def verify(plan, step_s: float = DEFAULT_STEP_S) -> VerifyReport:  # noqa: ANN00
     checks: dict[str, CheckResult] = {}
     checks.update(joint_checks(robot, t, q, qd, phase_index))
     checks["joint_rate_consistency"] = rate_consistency_check(robot, t, q, qd, phase_index, segments, sel)
-    checks["collision"], min_dist, pair_min = collision_check(sc, chaser, t, x, q, phase_index, sel, T_target)
+    checks["collision"], contact = collision_check(sc, chaser, t, x, q, phase_index, sel, T_target)
     mom, momentum = momentum_checks(chaser, compound, motion, t, x, q, qd, phase_index, segments, sel, k_pre, k_post)
     checks.update(mom)
     checks.update(grasp_checks(motion, t, T_ee, T_free, T_body_grasp, segments[1], k_pre))
@@ -182,10 +184,12 @@ def verify(plan, step_s: float = DEFAULT_STEP_S) -> VerifyReport:  # noqa: ANN00
                   f"{c.where}" for c in checks.values() if not c.passed]
     return VerifyReport(
         feasible=not violations, checks=checks, violations=violations, t=t[sel], sample_index=sel,
-        phase_index=phase_index[sel], min_distance_m=min_dist, grasp_wrench=wrench,
+        phase_index=phase_index[sel], min_distance_m=contact.min_distance_m, closest_pair=contact.closest_pair,
+        closest_points_m=contact.closest_points_m, grasp_wrench=wrench,
         ee_pose=pose_samples(T_ee[sel]), grasp_pose=pose_samples(T_target[sel] @ T_body_grasp),
         target_pose=pose_samples(T_target[sel]), base_pose=PoseSamples(x[sel, :3].copy(), x[sel, 3:].copy()),
-        momentum_world=momentum, pair_min_distance_m=pair_min, pair_count=len(pair_min),
+        momentum_world=momentum, pair_min_distance_m=contact.pair_min_distance_m,
+        pair_count=len(contact.pair_min_distance_m),
         step_s=float(np.diff(t[sel]).max()) if len(sel) > 1 else 0.0, t_grasp_s=t_grasp)
 
 

@@ -103,13 +103,25 @@ def rate_consistency_check(robot: RobotModel, t: Array, q: Array, qd: Array, pha
                       f"{robot.joints[j].name}: |q̇ − FD(q)| at {when(t[k], phase_index[k])}", t[k])
 
 
+@dataclass(frozen=True)
+class CollisionSamples:
+    """Per verified sample: the smallest signed distance (m), the pair that has it and its witness points."""
+
+    min_distance_m: Array  # [n]
+    closest_pair: list[str]  # [n] "A-B (shapeA/shapeB)"
+    closest_points_m: Array  # [n, 2, 3] witness points on A and on B, world frame
+    pair_min_distance_m: dict[str, float]  # "A-B" -> min over the samples
+
+
 def collision_check(sc: Scenario, chaser: PinKinematics, t: Array, x: Array, q: Array, phase_index: Array,
-                    sel: Array, T_target: Array) -> tuple[CheckResult, Array, dict[str, float]]:
-    """Signed distance of every scene pair at the verified samples: (check, per-sample min, per-pair min)."""
+                    sel: Array, T_target: Array) -> tuple[CheckResult, CollisionSamples]:
+    """Signed distance of every scene pair at the verified samples: the check and what each sample saw."""
     scene = build_scene(sc)
     names = [f"{a}-{b}" for a, b in scene.pairs]
     pair_min = dict.fromkeys(names, np.inf)
     min_dist = np.empty(len(sel))
+    closest: list[str] = []
+    points = np.empty((len(sel), 2, 3))
     worst = (np.inf, "", 0)
     for i, k in enumerate(sel):
         chaser.forward(x[k], q[k])
@@ -118,13 +130,18 @@ def collision_check(sc: Scenario, chaser: PinKinematics, t: Array, x: Array, q: 
         dists = scene.distances(poses)
         for name, pd in zip(names, dists, strict=True):
             pair_min[name] = min(pair_min[name], pd.distance_m)
-            if pd.distance_m < worst[0]:
-                worst = (pd.distance_m, f"{name} ({pd.shape_pair[0]}/{pd.shape_pair[1]})", int(k))
-        min_dist[i] = min(pd.distance_m for pd in dists)
+        j = int(np.argmin([pd.distance_m for pd in dists]))
+        pd = dists[j]
+        label = f"{names[j]} ({pd.shape_pair[0]}/{pd.shape_pair[1]})"
+        min_dist[i] = pd.distance_m
+        closest.append(label)
+        points[i] = pd.p_world_a, pd.p_world_b
+        if pd.distance_m < worst[0]:
+            worst = (pd.distance_m, label, int(k))
     d, pair, k = worst
     check = make_check("collision", d, sc.limits.collision_margin_m, "m", f"{pair} at {when(t[k], phase_index[k])}",
                        t[k], lower=True, tol=FEASIBILITY_TOL)
-    return check, min_dist, {name: float(v) for name, v in pair_min.items()}
+    return check, CollisionSamples(min_dist, closest, points, {name: float(v) for name, v in pair_min.items()})
 
 
 def _relative_deviation(dh: Array, h_arm: Array, h_ref: Array) -> tuple[Array, float, float]:

@@ -109,24 +109,45 @@ run_build(sys.argv[1], sys.argv[2], BuildOptions(jobs=2, solver="{fake}", resume
 """
 
 
+def _journaled_points(path: Path) -> int:
+    """Intact point records in a journal (its first frame is the header)."""
+    from lut.journal import MAGIC, read_frames
+
+    if not path.exists():
+        return 0
+    data = path.read_bytes()
+    if not data.startswith(MAGIC):
+        return 0
+    return max(0, len(read_frames(data, len(MAGIC))[0]) - 1)
+
+
 def test_kill_9_at_random_moments_then_resume_equals_uninterrupted(grid_file, tmp_path):
     reference = tmp_path / "ref.h5"
     run_build(grid_file, reference, BuildOptions(jobs=2, solver=FAKE, progress=False))
     out = tmp_path / "killed.h5"
-    env = dict(os.environ, LUTGEN_FAKE_SLEEP_S="0.4")
+    # 1 s per point: 9 points on 2 processes take ≥ 5 s, so three kills land before the end
+    env = dict(os.environ, LUTGEN_FAKE_SLEEP_S="1.0")
     rng = np.random.default_rng(7)
     script = BUILD_SCRIPT.format(fake=FAKE)
     kills = 0
     for _ in range(3):
+        # Kill at a random moment after this run has journaled something new, so that every kill
+        # interrupts real progress however slow the machine is (a wall-clock kill time is not).
+        before = _journaled_points(journal_path(out))
         proc = subprocess.Popen([sys.executable, "-c", script, str(grid_file), str(out)], env=env,
                                 start_new_session=True)
-        time.sleep(float(rng.uniform(2.5, 5.0)))
+        deadline = time.monotonic() + 120.0
+        while proc.poll() is None and _journaled_points(journal_path(out)) <= before \
+                and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(float(rng.uniform(0.0, 0.6)))
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)  # the build and its point processes, no cleanup
             kills += 1
         proc.wait()
-    assert kills >= 1
+    assert kills == 3
     assert journal_path(out).exists()
+    assert 3 <= _journaled_points(journal_path(out)) < 9
     run_build(grid_file, out, BuildOptions(jobs=2, solver=FAKE, resume=True, progress=False))
     _assert_same(_snapshot(reference), _snapshot(out))
 
