@@ -10,6 +10,8 @@ target, ``F = m_T a_T``, ``M = I_T ω̇_T + ω_T × I_T ω_T + (p_T − p_grasp)
 in the grasp frame — what a wrist force/torque sensor reads. Accelerations come from exact time
 derivatives (``casadi.jtimes``) of the symbolic twists along the state rates. Costs: chaser attitude
 disturbance (Σ‖ω_base‖² at the via points) or peak grasp torque (a slack bounding every component).
+With no stabilization cost weight the solve stops at the first iterate inside every constraint
+(:mod:`planner.phases.feasibility_stop`).
 
 The NLP is built per grasp geometry (the compound inertia depends on where the target was grasped);
 an MX graph over small SX Functions builds in about a second.
@@ -28,6 +30,7 @@ from planner.bspline import UniformCubicBSpline, stabilization_vertices
 from planner.collision_callback import SceneDistanceCallback, pose_vector
 from planner.freefloating import FreeFloatingModel, base_pose_rate_sym, momentum_map, quat_to_rotation_sym
 from planner.phases import constraint_backoff
+from planner.phases.feasibility_stop import FeasibilityStop
 from planner.robot import BodyInertia, RobotModel, fk_function
 from planner.scenario import Scenario
 from planner.scene import TARGET_BODY, build_scene
@@ -120,6 +123,13 @@ def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float
     uniform = T * np.arange(1, count + 1) / count
     knots = spline.segment_duration_s * np.arange(1, spline.n_segments)
     return np.unique(np.round(np.concatenate([uniform, knots]), 9))
+
+
+CONSTRAINT_TOL = 1e-7  # IPOPT's constr_viol_tol (rad, rad/s, m, N·m, N)
+# The feasibility stop's tolerance on the constraint values: IPOPT's iterates sit on the boundary of
+# active constraints only to ~1e-6 before mu is small; the back-offs (planner.phases.constraint_backoff)
+# are 1e4 times larger, so this changes nothing dense verification can see.
+STOP_CONSTRAINT_TOL = 1e-6
 
 
 class StabilizationProblem:
@@ -216,13 +226,20 @@ class StabilizationProblem:
         self.n_dist = k * n_d
         self.outputs = ca.Function("stabilization_outputs", [P, par], [M_all, F_all, ca.vertcat(*dists)])
         nlp = {"x": ca.vertcat(P, *w_extra), "p": par, "f": cost, "g": ca.vertcat(*g)}
-        self.solver = ca.nlpsol("stabilization", "ipopt", nlp, {
+        options = {}
+        self.stop = None
+        if c.attitude_disturbance == 0 and c.peak_wrench == 0:
+            # nothing to optimise: the first iterate inside every constraint is the answer
+            self.stop = FeasibilityStop("stabilization_feasible", self.n_params + self.n_extra, len(self.lbg),
+                                        par.numel(), slice(0, 0), 0.0, STOP_CONSTRAINT_TOL)
+            options["iteration_callback"] = self.stop
+        self.solver = ca.nlpsol("stabilization", "ipopt", nlp, options | {
             "ipopt.hessian_approximation": "limited-memory",
             "ipopt.max_iter": sc.solver.max_iter,
             "ipopt.max_wall_time": sc.solver.max_wall_s,
             "ipopt.tol": sc.solver.tol,
             "ipopt.acceptable_tol": 1e-4,
-            "ipopt.constr_viol_tol": 1e-7,
+            "ipopt.constr_viol_tol": CONSTRAINT_TOL,
             "ipopt.print_level": 0,
             "ipopt.sb": "yes",
             "print_time": False,
@@ -261,12 +278,17 @@ class StabilizationProblem:
         if self.n_extra:
             M0, _, _ = self.outputs(w0, par)
             w0 = np.concatenate([w0, [float(np.abs(np.asarray(M0)).max())]])
+        if self.stop is not None:
+            self.stop.arm(self.lbg, self.ubg)
         t0 = time.perf_counter()
         sol = self.solver(x0=w0, p=par, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=self.ubg)
         elapsed = time.perf_counter() - t0
         stats = self.solver.stats()
         P = np.asarray(sol["x"]).ravel()[: self.n_params]
         M, _, d = (np.asarray(a).ravel() for a in self.outputs(P, par))
-        return StabilizationSolution(P, bool(stats["success"]), str(stats["return_status"]), int(stats["iter_count"]),
+        success, status = bool(stats["success"]), str(stats["return_status"])
+        if self.stop is not None and self.stop.stopped:
+            success, status = True, "Feasible_Point_Found"
+        return StabilizationSolution(P, success, status, int(stats["iter_count"]),
                                      elapsed, self.build_time_s, float(sol["f"]), float(np.abs(M).max()),
                                      float(d.min()))

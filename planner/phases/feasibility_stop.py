@@ -1,0 +1,66 @@
+"""Stop IPOPT at the first iterate that satisfies every constraint of a pure feasibility problem.
+
+When a phase has no cost to optimise (all its weights zero), any point inside the constraints is a
+solution. IPOPT's own test also asks for a small dual infeasibility, which a limited-memory Hessian on
+a few thousand collision and wrench constraints reaches slowly if at all: on scenario II's stabilization
+the iterates are feasible after ~100 iterations and then wander for hundreds more, chasing only the
+1e-6 regulariser. This callback ends the solve there instead ("User_Requested_Stop" in IPOPT's stats;
+the caller reports it as a feasible solution).
+
+Optional slack variables of an elastic (ℓ1-penalty) formulation are checked too: a relaxed constraint
+is satisfied only once its slack is below ``slack_tol``. (Elastic mode was tried on the stabilization
+NLP and dropped: it converged fast but into local minima that kept decimetres of collision slack.)
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+
+class FeasibilityStop(ca.Callback):
+    """IPOPT iteration callback: returns 1 (stop) once ``lbg − tol ≤ g ≤ ubg + tol`` and slacks ≤ slack_tol."""
+
+    def __init__(self, name: str, n_x: int, n_g: int, n_p: int, slack_index: slice, slack_tol: float | Array,
+                 constraint_tol: float) -> None:
+        ca.Callback.__init__(self)
+        self.n_x, self.n_g, self.n_p = n_x, n_g, n_p
+        self.slack_index = slack_index
+        self.slack_tol = np.asarray(slack_tol, dtype=float)  # scalar or one per slack
+        self.constraint_tol = constraint_tol
+        self.lbg = np.full(n_g, -np.inf)
+        self.ubg = np.full(n_g, np.inf)
+        self.stopped = False
+        self.construct(name, {})
+
+    def arm(self, lbg: Array, ubg: Array) -> None:
+        """Set the bounds of the coming solve and clear the stop flag."""
+        self.lbg, self.ubg = np.asarray(lbg, dtype=float), np.asarray(ubg, dtype=float)
+        self.stopped = False
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "stop"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        name = ca.nlpsol_out(i)
+        size = {"f": 1, "x": self.n_x, "lam_x": self.n_x, "g": self.n_g, "lam_g": self.n_g}.get(name, self.n_p)
+        return ca.Sparsity.dense(size)
+
+    def eval(self, arg: list) -> list:
+        x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
+        g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
+        violation = float(np.max(np.maximum(self.lbg - g, g - self.ubg), initial=0.0))
+        self.stopped = violation <= self.constraint_tol and bool(np.all(x[self.slack_index] <= self.slack_tol))
+        return [1.0 if self.stopped else 0.0]

@@ -1,0 +1,51 @@
+"""The feasibility stop ends an IPOPT solve at the first iterate inside every constraint, and only there.
+
+Toy problem with a known feasible set: minimise a flat regulariser subject to a disc constraint
+``x² + y² ≤ 1`` relaxed elastically by a slack ``s ≥ 0`` (``x² + y² − s ≤ 1``, cost ``100 s``), started
+far outside the disc — the shape of the stabilization NLP's elastic mode in miniature.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from planner.phases.feasibility_stop import FeasibilityStop
+
+
+def _solve(stop: FeasibilityStop | None, x0: list[float]):
+    w = ca.MX.sym("w", 3)  # x, y, slack
+    g = w[0] ** 2 + w[1] ** 2 - w[2]
+    options = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
+               "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": 500}
+    if stop is not None:
+        options["iteration_callback"] = stop
+        stop.arm(np.array([-np.inf]), np.array([1.0]))
+    solver = ca.nlpsol("toy", "ipopt", {"x": w, "f": 1e-6 * ((w[0] - 0.3) ** 2 + w[1] ** 2) + 100 * w[2], "g": g},
+                       options)
+    sol = solver(x0=x0, lbx=[-np.inf, -np.inf, 0.0], ubx=[np.inf] * 3, lbg=-np.inf, ubg=1.0)
+    return np.asarray(sol["x"]).ravel(), solver.stats()
+
+
+def test_stops_at_the_first_feasible_iterate_before_ipopt_would():
+    x0 = [3.0, -2.0, 12.5]  # outside the disc, slack making it feasible for the relaxed problem
+    w_full, stats_full = _solve(None, x0)
+    stop = FeasibilityStop("toy_stop", 3, 1, 0, slice(2, 3), slack_tol=1e-6, constraint_tol=1e-9)
+    w_stop, stats_stop = _solve(stop, x0)
+    assert stats_stop["return_status"] == "User_Requested_Stop" and stop.stopped
+    assert stats_stop["iter_count"] < stats_full["iter_count"]
+    # the returned iterate is feasible for the ORIGINAL constraint: inside the disc, slack ~0
+    assert w_stop[2] <= 1e-6
+    assert w_stop[0] ** 2 + w_stop[1] ** 2 <= 1.0 + 1e-6 + 1e-9
+
+
+def test_never_stops_while_a_slack_is_still_open():
+    # the disc is unreachable when y is pinned at 2: the slack stays ≥ 3, so the solve must run to IPOPT's end
+    w = ca.MX.sym("w", 3)
+    stop = FeasibilityStop("toy_open", 3, 1, 0, slice(2, 3), slack_tol=1e-6, constraint_tol=1e-9)
+    stop.arm(np.array([-np.inf]), np.array([1.0]))
+    solver = ca.nlpsol("toy2", "ipopt", {"x": w, "f": 100 * w[2], "g": w[0] ** 2 + w[1] ** 2 - w[2]},
+                       {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "iteration_callback": stop})
+    sol = solver(x0=[1.0, 2.0, 5.0], lbx=[-np.inf, 2.0, 0.0], ubx=[np.inf, 2.0, np.inf], lbg=-np.inf, ubg=1.0)
+    assert not stop.stopped and solver.stats()["success"]
+    assert float(sol["x"][2]) > 3.0 - 1e-6  # x² + 4 − s ≤ 1 needs s ≥ 3
