@@ -1,0 +1,184 @@
+"""Shared helpers of the benchmark: repository paths, per-mode settings, timing statistics, JSON hygiene."""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+GOLDEN_TABLE = ROOT / "tests" / "data" / "ci_golden.h5"
+DEMO_TABLE = ROOT / "out" / "demo.h5"  # what scripts/demo builds
+SCENARIOS = ROOT / "configs" / "scenarios"
+FAKE_SOLVER = "tests.support.fake_solver:solve"
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How much of everything one benchmark run measures (see :func:`settings_for`)."""
+
+    mode: str  # "full" or "quick"
+    trim: bool
+    seed: int
+    # primitives: µs per call over ``repeats`` batches of ≥ ``min_calls`` calls and ≥ ``min_batch_s`` s
+    repeats: int
+    min_calls: int
+    min_batch_s: float
+    verify_runs: int
+    # query
+    query_table: Path
+    query_states: int
+    refine_budget_s: float | None  # None: no refine
+    # build (fake solver)
+    build_grid: tuple[int, int]  # (rate count, phase count) of a generated flat-spin grid
+    fake_point_s: float
+    build_runs: int
+    # planner (whole plans)
+    plan_runs: int
+    plan_cap_s: float
+    plan_with_costs: bool
+    # baseline (approach NLP)
+    baseline_cap_s: float
+    baseline_max_iter: int
+    baseline_max_delay_s: float | None  # None: the scenario's own start-delay window
+
+
+def settings_for(quick: bool, trim: bool, seed: int, plan_runs: int | None, plan_cap_s: float,
+                 plan_with_costs: bool, refine_budget_s: float) -> Settings:
+    """Settings of a full, ``--quick`` or ``--trim`` run (trim implies quick: everything as small as it gets)."""
+    full = not (quick or trim)
+    table = DEMO_TABLE if full and DEMO_TABLE.is_file() else GOLDEN_TABLE
+    # A 30 s start-delay window makes the initial-guess scan ~4x cheaper (~7 s instead of ~27 s) and,
+    # for scenario II's default state, leads IPOPT to the same solution as the scenario's 90 s window.
+    common = {"seed": seed, "query_table": table, "plan_cap_s": plan_cap_s, "plan_with_costs": plan_with_costs}
+    if full:
+        return Settings("full", False, repeats=5, min_calls=1000, min_batch_s=0.5, verify_runs=5, query_states=50,
+                        refine_budget_s=refine_budget_s, build_grid=(4, 4), fake_point_s=2.0, build_runs=3,
+                        plan_runs=1 if plan_runs is None else plan_runs, baseline_cap_s=300.0,
+                        baseline_max_iter=1000, baseline_max_delay_s=None, **common)
+    if not trim:
+        return Settings("quick", False, repeats=5, min_calls=200, min_batch_s=0.1, verify_runs=3, query_states=10,
+                        refine_budget_s=None, build_grid=(2, 3), fake_point_s=0.5, build_runs=1,
+                        plan_runs=0 if plan_runs is None else plan_runs, baseline_cap_s=60.0,
+                        baseline_max_iter=200, baseline_max_delay_s=30.0, **common)
+    # trim: 2 query states, not 3: each costs ~7 s and the test that runs this should stay under a minute
+    return Settings("quick", True, repeats=3, min_calls=50, min_batch_s=0.02, verify_runs=1, query_states=2,
+                    refine_budget_s=None, build_grid=(1, 2), fake_point_s=0.0, build_runs=1,
+                    plan_runs=0 if plan_runs is None else plan_runs, baseline_cap_s=20.0, baseline_max_iter=1,
+                    baseline_max_delay_s=30.0, **common)
+
+
+# ---- statistics ----------------------------------------------------------------------------------------
+
+
+def stats(samples: Sequence[float]) -> dict[str, float | int]:
+    """``{"median", "min", "max", "runs"}`` of ``samples`` (same unit as the samples)."""
+    a = np.asarray(samples, dtype=float)
+    return {"median": float(np.median(a)), "min": float(a.min()), "max": float(a.max()), "runs": int(a.size)}
+
+
+def stats_p95(samples: Sequence[float]) -> dict[str, float | int]:
+    """:func:`stats` plus the 95th percentile (latency distributions)."""
+    return {**stats(samples), "p95": float(np.percentile(np.asarray(samples, dtype=float), 95))}
+
+
+def skipped(reason: str, keys: Sequence[str] = ()) -> dict[str, Any]:
+    """A part not measured in this mode: its keys with null values and the reason."""
+    return {**dict.fromkeys(keys), "skipped": reason}
+
+
+def time_per_call_us(fn: Callable[[], object], settings: Settings) -> dict[str, float | int]:
+    """µs per call of ``fn``: median over ``settings.repeats`` batches of equal size, each batch at least
+    ``settings.min_calls`` calls and ``settings.min_batch_s`` long (one batch is timed as a whole, so
+    the timer's own cost and resolution do not enter a µs-scale call)."""
+    fn()  # lazy initialisation (CasADi buffers, FCL objects) is not a per-call cost
+    n, t0 = 0, time.perf_counter()
+    while n < 10 or time.perf_counter() - t0 < settings.min_batch_s / 10:
+        fn()
+        n += 1
+    per_call_s = (time.perf_counter() - t0) / n
+    batch = max(settings.min_calls, math.ceil(settings.min_batch_s / per_call_s))
+    per_call_us = []
+    for _ in range(settings.repeats):
+        t0 = time.perf_counter()
+        for _ in range(batch):
+            fn()
+        per_call_us.append((time.perf_counter() - t0) / batch * 1e6)
+    return {**stats(per_call_us), "calls_per_run": batch}
+
+
+def timed(fn: Callable[[], Any]) -> tuple[Any, float]:
+    """``(fn(), wall seconds)``."""
+    t0 = time.perf_counter()
+    result = fn()
+    return result, time.perf_counter() - t0
+
+
+# ---- shared objects --------------------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=2)
+def table_query(path: Path):  # noqa: ANN201 - lut.query.TableQuery (imported lazily: it builds a planner)
+    """One opened table per path for the whole run (primitives and queries share the golden table)."""
+    from lut.query import TableQuery
+
+    return TableQuery(path)
+
+
+def load_scenario_named(name: str):  # noqa: ANN201 - planner.scenario.Scenario
+    """``configs/scenarios/<name>.toml``."""
+    from planner.scenario import load_scenario
+
+    return load_scenario(SCENARIOS / f"{name}.toml")
+
+
+def default_state(scenario):  # noqa: ANN001, ANN201 - Scenario -> TargetState
+    """The scenario's default observed target state (what ``lutgen plan`` uses without options)."""
+    from planner.target import TargetState
+
+    ts = scenario.target_state
+    return TargetState(np.asarray(ts.attitude_wxyz, dtype=float), np.asarray(ts.omega_body_rad_s, dtype=float))
+
+
+@contextmanager
+def environment(**variables: str) -> Iterator[None]:
+    """Set environment variables for the block (child processes inherit them), then restore them."""
+    saved = {k: os.environ.get(k) for k in variables}
+    os.environ.update(variables)
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def relative(path: Path) -> str:
+    """``path`` relative to the repository (JSON carries no machine paths)."""
+    path = Path(path).resolve()
+    return path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else path.name
+
+
+def json_safe(value: Any) -> Any:
+    """Plain JSON types; NaN and ±inf become null (strict JSON has neither)."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return json_safe(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

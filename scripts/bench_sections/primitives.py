@@ -1,0 +1,108 @@
+"""``primitives``: µs per call of the kinematic, momentum and collision building blocks, next to
+pinocchio, and the time of one dense verification of a whole plan."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from bench_sections.common import (
+    GOLDEN_TABLE,
+    Settings,
+    load_scenario_named,
+    relative,
+    stats,
+    table_query,
+    time_per_call_us,
+    timed,
+)
+
+
+def _random_configuration(robot, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+    """Joint angles inside the limits (rad), base position (m) and attitude quaternion [w, x, y, z]."""
+    quat = rng.normal(size=4)
+    return rng.uniform(robot.q_min, robot.q_max), rng.uniform(-1.0, 1.0, size=3), quat / np.linalg.norm(quat)
+
+
+def kinematics(settings: Settings) -> dict[str, Any]:
+    """FK of all bodies and momentum map + J*: our CasADi Functions vs pinocchio on the same model."""
+    from planner.freefloating import FreeFloatingModel
+    from planner.robot import fk_function, pin_configuration
+
+    robot = load_scenario_named("scenario_II").robot
+    q, p_base, quat = _random_configuration(robot, np.random.default_rng(settings.seed))
+    x_pin = pin_configuration(p_base, quat, q)
+    model = robot.pin_model
+    data = model.createData()
+    fk = fk_function(robot)
+    ff = FreeFloatingModel(robot)
+
+    def pin_fk() -> None:
+        pin.forwardKinematics(model, data, x_pin)
+        pin.updateFramePlacements(model, data)
+
+    def momentum_and_jstar() -> None:
+        ff.momentum(q)
+        ff.gen_jacobian(q)
+
+    return {
+        "forward_kinematics_casadi_us": time_per_call_us(lambda: fk(q), settings),
+        "forward_kinematics_pinocchio_us": time_per_call_us(pin_fk, settings),
+        "momentum_map_and_jstar_casadi_us": time_per_call_us(momentum_and_jstar, settings),
+        "centroidal_map_pinocchio_us": time_per_call_us(lambda: pin.computeCentroidalMap(model, data, x_pin),
+                                                        settings),
+        "notes": "CasADi: fk_function (8 bodies + ee, base frame) and FreeFloatingModel.momentum + gen_jacobian "
+                 "(A_b, A_m, r_g, J*, D), called from Python with numpy; pinocchio: forwardKinematics + "
+                 "updateFramePlacements, and computeCentroidalMap (A_g only, no J*)",
+    }
+
+
+def collision_sweep(settings: Settings) -> dict[str, Any]:
+    """One distance query of every pair of the default scene (29) at a random configuration."""
+    from planner.robot import fk_function
+    from planner.rotation import quat_to_matrix
+    from planner.scene import build_scene, world_poses
+
+    sc = load_scenario_named("scenario_II")
+    rng = np.random.default_rng(settings.seed + 1)
+    q, p_base, quat = _random_configuration(sc.robot, rng)
+    T_target = np.eye(4)
+    T_target[:3, :3] = quat_to_matrix(_random_configuration(sc.robot, rng)[2])
+    T_target[:3, 3] = sc.target.p_world_com  # the target where the scenario puts it, randomly turned
+    scene = build_scene(sc)
+    poses = world_poses(sc.robot, fk_function(sc.robot)(q), quat_to_matrix(quat), p_base, T_target)
+    distances = scene.distances(poses)
+    return {"collision_sweep_us": time_per_call_us(lambda: scene.distances(poses), settings),
+            "collision_pairs": len(scene.pairs),
+            "collision_min_distance_m": float(min(d.distance_m for d in distances))}
+
+
+def verify_one_plan(settings: Settings) -> dict[str, Any]:
+    """``planner.verify.verify`` of a whole plan: the golden table's parameters re-simulated at a grid
+    node (interpolation there returns that node's record), timed apart from the simulation."""
+    from lut.records import warm_start_from_record
+    from planner.verify import DEFAULT_STEP_S, verify
+
+    tq = table_query(GOLDEN_TABLE)
+    point = tq.grid.seed_point()
+    state = tq.grid.state(point)
+    rec, corners, _ = tq.interpolate(state)
+    rate = float(np.linalg.norm(state.omega_body_rad_s))
+    warm = warm_start_from_record(rec, 0.0, tq.scenario.phases.max_start_delay_s, 2 * np.pi / rate)
+    plan, simulate_s = timed(lambda: tq.planner.simulate(state, warm))
+    runs = []
+    for _ in range(settings.verify_runs):
+        report, seconds = timed(lambda: verify(plan))
+        runs.append(seconds)
+    return {"verify_plan_s": stats(runs), "verify_plan_simulate_s": simulate_s,
+            "verify_plan": {"table": relative(GOLDEN_TABLE), "grid_point": int(point), "corners": corners,
+                            "plan_samples": int(len(plan.t)), "verify_step_s": DEFAULT_STEP_S,
+                            "plan_duration_s": float(plan.t[-1] - plan.t[0]),
+                            "feasible": bool(report.feasible)}}
+
+
+def primitives(settings: Settings) -> dict[str, Any]:
+    """The whole section."""
+    return {**kinematics(settings), **collision_sweep(settings), **verify_one_plan(settings)}

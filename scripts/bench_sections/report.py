@@ -1,0 +1,112 @@
+"""The readable table printed at the end of a benchmark run (the JSON has everything; this is a digest)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+Row = tuple[str, str]
+
+
+def timing(entry: Any, unit: str = "s", scale: float = 1.0) -> str:
+    """``median unit [min …, p95 …, max …; n runs]``, or the skip reason, or the plain value."""
+    if isinstance(entry, dict) and entry.get("median") is not None:
+        extra = f", p95 {entry['p95'] * scale:.4g}" if "p95" in entry else ""
+        return (f"{entry['median'] * scale:.4g} {unit}  [min {entry['min'] * scale:.4g}{extra}, "
+                f"max {entry['max'] * scale:.4g}; n={entry['runs']}]")
+    if isinstance(entry, dict) and "skipped" in entry:
+        return f"skipped: {entry['skipped']}"
+    return "n/a" if entry is None else str(entry)
+
+
+def _ratio(value: float | None, fmt: str = ".3g") -> str:
+    return "n/a" if value is None else format(value, fmt)
+
+
+def _primitives(p: dict[str, Any]) -> tuple[str, list[Row]]:
+    rows = [("FK all bodies, CasADi", timing(p["forward_kinematics_casadi_us"], "µs")),
+            ("FK all bodies, pinocchio", timing(p["forward_kinematics_pinocchio_us"], "µs")),
+            ("momentum map + J*, CasADi", timing(p["momentum_map_and_jstar_casadi_us"], "µs")),
+            ("centroidal map, pinocchio", timing(p["centroidal_map_pinocchio_us"], "µs")),
+            (f"collision sweep ({p['collision_pairs']} pairs)", timing(p["collision_sweep_us"], "µs")),
+            (f"verify one plan ({p['verify_plan']['plan_samples']} samples)", timing(p["verify_plan_s"]))]
+    return "primitives", rows
+
+
+def _query(q: dict[str, Any]) -> tuple[str, list[Row]]:
+    r = q["refine"]
+    after = r["fraction_feasible_after_refine"]
+    rows = [("lookup + interpolation", timing(q["lookup_interpolate_ms"], "ms")),
+            ("simulate", timing(q["simulate_s"])),
+            ("verify", timing(q["verify_s"])),
+            ("query total (no refine)", timing(q["query_total_s"])),
+            ("feasible from interpolation", f"{q['fraction_feasible_interpolation']:.0%} of {q['states']}"),
+            ("refine", timing(r["refine_s"]) if r.get("refine_s") else f"skipped: {r.get('skipped')}"),
+            ("feasible after refine", "n/a" if after is None else f"{after:.0%}"),
+            ("query process peak RSS / wall", f"{q['peak_memory_query_process_mib']:.0f} MiB / "
+                                             f"{q['query_process_wall_s']:.1f} s")]
+    return f"query ({q['table']}, {q['states']} states)", rows
+
+
+def _build(b: dict[str, Any]) -> tuple[str, list[Row]]:
+    rows = []
+    for key in ("loky_j1", "loky_j2", "dask_2_workers"):
+        e = b[key]
+        rows.append((f"{key} ({b['points']} points)", f"{e['points_per_hour']:.4g} points/h" if e.get("points_per_hour")
+                     else timing(e)))
+    er = b["estimated_real"]
+    rows += [("scaling efficiency -j 2 / dask", f"{_ratio(b['scaling_efficiency_j2'])} / "
+                                                f"{_ratio(b['scaling_efficiency_dask'])} "
+                                                f"(layer limit {b['ideal_speedup_j2'] / 2:.3g})"),
+             ("harness overhead per point", f"{b['harness_overhead_per_point_s']:.3g} s"),
+             ("real planner (golden solve times)", timing(er) if "skipped" in er else
+              f"{er['points_per_hour_1_core']:.3g} points/h on 1 core, {er['points_per_hour_2_cores']:.3g} on 2")]
+    return f"build (fake solver, {b['fake_point_s']:g} s/point)", rows
+
+
+def _planner(p: dict[str, Any]) -> tuple[str, list[Row]]:
+    rows = []
+    for name in ("scenario_I", "scenario_II"):
+        for variant, e in p[name].items():
+            label = f"{name} {variant}"
+            if "skipped" in e:
+                rows.append((label, f"skipped: {e['skipped']}"))
+                continue
+            rows += [(f"{label} {key[:-2]}", timing(e[key])) for key in ("approach_s", "tracking_s",
+                                                                          "stabilization_s", "total_s")]
+            it = e["ipopt_iterations"]
+            rows.append((f"{label} IPOPT iterations / feasible", f"approach {it['approach']['median']:.0f}, "
+                         f"stabilization {it['stabilization']['median']:.0f} / {e['feasible']}"))
+    return "planner (whole plans, default state)", rows
+
+
+def _baseline(b: dict[str, Any]) -> tuple[str, list[Row]]:
+    rows = []
+    for key, label in (("ipopt_exact", "IPOPT, exact derivatives"), ("slsqp_finite_difference", "SLSQP, FD")):
+        e = b[key]
+        rows.append((label, f"{e['time_s']:.3g} s, {e['iterations']} it, f = {e['objective']:.4g}, "
+                            f"max viol {e['max_violation']:.2g}, {'ok' if e['success'] else 'not converged'} "
+                            f"({e['status']})"))
+    rows.append(("time ratio SLSQP / IPOPT", f"{b['time_ratio_slsqp_over_ipopt']:.3g}"))
+    p = b["problem"]
+    return f"baseline (scenario II approach NLP: {p['variables']} variables, {p['constraints']} constraints)", rows
+
+
+SECTIONS = {"primitives": _primitives, "query": _query, "build": _build, "planner": _planner,
+            "baseline": _baseline}
+
+
+def print_report(result: dict[str, Any]) -> None:
+    """Print the digest table of a benchmark result to stdout."""
+    m = result["machine"]
+    print(f"lutgen bench — {m['mode']}{' (trim)' if m['trim'] else ''}; {m['cpu_count']} CPUs ({m['cpu_model']}), "
+          f"Python {m['python']}, load {m['load_average_start']} → {m['load_average_end']}")
+    sections = []
+    for name, digest in SECTIONS.items():
+        data = result[name]
+        sections.append((name, [("FAILED", data["error"])]) if "error" in data else digest(data))
+    width = max(len(label) for _, rows in sections for label, _ in rows)
+    for title, rows in sections:
+        print(title)
+        for label, value in rows:
+            print(f"  {label:<{width}}  {value}")
+    print(f"wall time {result['wall_s']:.0f} s")
