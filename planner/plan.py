@@ -2,15 +2,16 @@
 
 approach NLP → dense re-simulation of the approach → tracking IK → compound momentum at the grasp →
 stabilization NLP → dense re-simulation of the stabilization. The approach NLP carries a proxy of the
-tracking constraints (configurations at the tracking nodes); if the real IK then exceeds a joint-rate
-limit by a factor f, the approach is re-solved with its tracking-rate bounds tightened by 1/f
-(warm-started), up to :data:`TIGHTENING_ROUNDS` times. Times are seconds since the observation.
+tracking constraints (configurations at the tracking nodes); the IK caps its joint rates (a short lag the
+pose feedback recovers), but if it asked for more than :data:`RATE_DEMAND_TOLERATED` × a limit, f, the
+approach is re-solved with its tracking-rate bounds tightened by 1/f (warm-started), up to
+:data:`TIGHTENING_ROUNDS` times. Times are seconds since the observation.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,6 +30,10 @@ Array = NDArray[np.float64]
 
 SAMPLE_STEP_S = 0.01  # dense re-simulation step of the approach and stabilization (s)
 TIGHTENING_ROUNDS = 2
+# the IK's rate cap absorbs a demand up to this × the limit; beyond it the lag grows and the approach is
+# re-solved instead. Measured: scenarios I and II asked for 1.14 and 1.10 and, capped, still met the grasp
+# to 2-3e-5 m, rad, m/s and rad/s — 20-50 times inside the grasp thresholds verify applies
+RATE_DEMAND_TOLERATED = 1.25
 
 
 @dataclass(frozen=True)
@@ -88,7 +93,6 @@ class Planner:
 
     def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs."""
-        sc = self.scenario
         t_start = time.perf_counter()
         warm = warm_start.as_warm_start() if isinstance(warm_start, GraspPlan) else warm_start
         app = self.approach.solve(state, warm.approach if warm is not None else None)
@@ -96,14 +100,18 @@ class Planner:
         notes: list[str] = []
         for round_ in range(TIGHTENING_ROUNDS + 1):
             approach_samples, tr = self._approach_and_tracking(app, motion)
-            ratio = float((np.abs(tr.qd) / sc.robot.qd_max).max())
-            if ratio <= 1.0 or round_ == TIGHTENING_ROUNDS or not app.success:
+            ratio = tr.peak_rate_demand
+            if ratio <= RATE_DEMAND_TOLERATED or round_ == TIGHTENING_ROUNDS or not app.success:
                 break
             scale = self.approach.tracking_speed_scale / ratio * 0.97
             notes.append(f"tracking joint rate {ratio:.3f}× the limit: approach re-solved with its tracking-rate "
                          f"bounds scaled by {scale:.3f}")
             retry = self.approach.solve(state, app, tracking_speed_scale=scale)
             if not retry.success:
+                # keep the first solution (the verifier will name its rate excess), but count the time
+                app = replace(app, solve_time_s=app.solve_time_s + retry.solve_time_s,
+                              iterations=app.iterations + retry.iterations)
+                notes.append(f"the re-solve failed ({retry.status}); the first approach is kept")
                 break
             app = replace_timing(retry, app)
         grasp, T_body_grasp_used = self._grasp_state(tr, motion)
@@ -194,7 +202,8 @@ class Planner:
         A_b, A_m, _ = (np.asarray(a) for a in ff_c.momentum(q))
         h_base = A_b @ nu + A_m @ qd
         h_world = np.concatenate([R @ h_base[:3], R @ h_base[3:]])
-        return GraspState(q, qd, tr.qdd_end, x, h_world, T_ee_target), T_bg
+        qdd = tr.qdd_end if sc.stabilization.start_acceleration == "continuous" else np.zeros_like(qd)
+        return GraspState(q, qd, qdd, x, h_world, T_ee_target), T_bg
 
     def _stabilization_samples(self, problem: StabilizationProblem, stab: StabilizationSolution,
                                grasp: GraspState) -> tuple[Array, Array, Array, Array]:
@@ -205,8 +214,6 @@ class Planner:
 
 def replace_timing(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:
     """The re-solved approach, with solve time and iterations accumulated over both solves."""
-    from dataclasses import replace
-
     return replace(new, solve_time_s=new.solve_time_s + old.solve_time_s, iterations=new.iterations + old.iterations)
 
 

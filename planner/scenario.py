@@ -287,6 +287,11 @@ class StabilizationSettings:
     n_vertices: int
     via_points: int
     rk4_steps: int
+    # joint acceleration the Eq. 24 spline starts with: "continuous" = the tracking IK's at the grasp (C²
+    # join: the gripper keeps accelerating with the free target, so the grasp wrench starts from zero);
+    # "zero" = the paper's Eq. 24 (s̈(0) = 0; the wrench steps at the grasp by what the IK's acceleration
+    # carried)
+    start_acceleration: str = "continuous"
 
 
 @dataclass(frozen=True)
@@ -409,7 +414,8 @@ def load_scenario(path: str | Path) -> Scenario:
 
     b = t.table("stabilization", default={})
     stab = StabilizationSettings(b.number("n_vertices", 10, integer=True), b.number("via_points", 20, integer=True),
-                                 b.number("rk4_steps", 90, integer=True))
+                                 b.number("rk4_steps", 90, integer=True),
+                                 b.string("start_acceleration", "continuous", choices=("continuous", "zero")))
     for key in ("n_vertices", "via_points", "rk4_steps"):
         minimum = 8 if key == "n_vertices" else 2
         if getattr(stab, key) < minimum:

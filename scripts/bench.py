@@ -62,6 +62,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--plan-cap-s", type=float, default=300.0, help="IPOPT wall-time cap (s) per NLP of a plan")
     ap.add_argument("--plan-with-costs", action="store_true",
                     help="also plan with cost terms (the scenario's weights, or the paper's approach costs)")
+    ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
+                    help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
+                         "--out file are kept, so one part can be re-measured after a change")
     return ap.parse_args(argv)
 
 
@@ -72,14 +75,21 @@ def write_json(result: dict[str, Any], out: Path) -> None:
     out.write_text(json.dumps(json_safe(ordered), indent=1, allow_nan=False) + "\n", encoding="utf-8")
 
 
-def run(settings: Settings, out: Path) -> dict[str, Any]:
-    """Every section, each timed, the JSON rewritten after each (a long full run keeps what it measured).
+def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """Every section (or ``only`` these), each timed, the JSON rewritten after each (a long full run keeps
+    what it measured).
 
-    A section that raises is recorded as ``{"error", "skipped"}`` and the others still run.
+    A section that raises is recorded as ``{"error", "skipped"}`` and the others still run. With ``only``,
+    the other sections of an existing ``out`` are kept as they were measured.
     """
     t_start = time.perf_counter()
-    result: dict[str, Any] = {"machine": machine(settings)}
+    result: dict[str, Any] = {}
+    if only is not None and out.is_file():
+        result = {k: v for k, v in json.loads(out.read_text(encoding="utf-8")).items() if k not in only}
+    result["machine"] = machine(settings)
     for name, section in SECTIONS.items():
+        if only is not None and name not in only:
+            continue
         print(f"bench: {name} …", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:
@@ -91,7 +101,10 @@ def run(settings: Settings, out: Path) -> dict[str, Any]:
         result[name]["section_wall_s"] = time.perf_counter() - t0
         write_json(result, out)
     result["machine"]["load_average_end"] = load_average()
-    result["wall_s"] = time.perf_counter() - t_start
+    if only is None:  # a partial re-run keeps the full run's wall time; its sections carry their own
+        result["wall_s"] = time.perf_counter() - t_start
+    else:
+        result["machine"]["sections_rerun"] = list(only)
     write_json(result, out)
     return result
 
@@ -100,7 +113,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     settings = settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s, args.plan_with_costs,
                             args.refine_budget_s)
-    result = run(settings, args.out)
+    only = None
+    if args.only is not None:
+        only = tuple(name.strip() for name in args.only.split(",") if name.strip())
+        unknown = [name for name in only if name not in SECTIONS]
+        if unknown or not only:
+            print(f"bench.py: --only: unknown section(s) {', '.join(unknown) or '(none given)'}; "
+                  f"choose from {', '.join(SECTIONS)}", file=sys.stderr)
+            return 2
+    result = run(settings, args.out, only)
     print_report(json_safe(result))
     print(f"wrote {args.out}")
     return 1 if any("error" in section for section in result.values() if isinstance(section, dict)) else 0

@@ -27,13 +27,22 @@ def _reject_constant(name: str) -> None:
     raise ValueError(f"non-finite number {name} in the JSON")
 
 
-@pytest.fixture(scope="module")
-def run(tmp_path_factory) -> tuple[dict[str, Any], str]:
-    out = tmp_path_factory.mktemp("bench") / "bench.json"
-    proc = subprocess.run([sys.executable, "scripts/bench.py", "--quick", "--trim", "--out", str(out)], cwd=ROOT,
+def _bench(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "scripts/bench.py", "--quick", "--trim", *args], cwd=ROOT,
                           capture_output=True, text=True, timeout=900)
+
+
+@pytest.fixture(scope="module")
+def run_path(tmp_path_factory) -> tuple[Path, str]:
+    out = tmp_path_factory.mktemp("bench") / "bench.json"
+    proc = _bench("--out", str(out))
     assert proc.returncode == 0, proc.stderr[-4000:]
-    return json.loads(out.read_text(), parse_constant=_reject_constant), proc.stdout
+    return out, proc.stdout
+
+
+@pytest.fixture(scope="module")
+def run(run_path) -> tuple[dict[str, Any], str]:
+    return json.loads(run_path[0].read_text(), parse_constant=_reject_constant), run_path[1]
 
 
 @pytest.fixture(scope="module")
@@ -146,3 +155,18 @@ def test_baseline_reports_both_solvers_on_the_same_problem(bench):
         assert math.isfinite(e["objective"]) and math.isfinite(e["max_violation"]) and e["max_violation"] >= 0, key
         assert isinstance(e["success"], bool) and e["status"], key
     assert _positive(b["time_ratio_slsqp_over_ipopt"])
+
+
+def test_only_reruns_the_named_section_and_keeps_the_others(run_path, tmp_path):
+    before = json.loads(run_path[0].read_text())
+    out = tmp_path / "bench.json"
+    out.write_text(run_path[0].read_text())
+    proc = _bench("--only", "primitives", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    after = json.loads(out.read_text())
+    for section in ("query", "build", "planner", "baseline", "wall_s"):
+        assert after[section] == before[section], section
+    assert after["machine"]["sections_rerun"] == ["primitives"]
+    assert after["primitives"]["section_wall_s"] != before["primitives"]["section_wall_s"]  # measured again
+    bad = _bench("--only", "primitivs", "--out", str(out))
+    assert bad.returncode == 2 and "primitivs" in bad.stderr

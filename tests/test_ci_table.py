@@ -23,7 +23,7 @@ import pytest
 
 from lut.build import BuildOptions, run_build
 from lut.query import TableQuery
-from lut.records import PARAMETER_KEYS
+from lut.records import PARAMETER_KEYS, warm_start_from_record
 from lut.store import Table
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -138,3 +138,22 @@ def test_inspect_plot_writes_coverage_maps(tmp_path):
     written = sorted((tmp_path / "maps").glob("*.png"))
     assert written and all(f"wrote {p}" in proc.stdout for p in written)
     assert "points     pending 0, feasible 4" in proc.stdout
+
+
+def test_tracking_rate_cap_scales_the_rates_and_the_feedback_still_meets_the_grasp(table_query, monkeypatch):
+    """Cut the IK's rate cap 10 % below what a golden plan's tracking asks for: every commanded rate stays
+    under the cap, and the pose feedback recovers the lag before the grasp (the impact-free thresholds of
+    the grasp: < 1 mm, < 0.1°, < 1 mm/s, < 0.05 °/s)."""
+    import planner.phases.tracking as tracking
+
+    tq = table_query
+    motion = tq.planner._motion(tq.grid.state(0))
+    approach = warm_start_from_record(tq.records[0]).approach
+    free = tq.planner._approach_and_tracking(approach, motion)[1]
+    cap = 0.9 * min(free.peak_rate_demand, tracking.RATE_CAP_FRACTION)
+    monkeypatch.setattr(tracking, "RATE_CAP_FRACTION", cap)
+    capped = tq.planner._approach_and_tracking(approach, motion)[1]
+    assert capped.peak_rate_demand > cap  # the cap was active
+    assert (np.abs(capped.qd) / tq.scenario.robot.qd_max).max() <= cap + 1e-12
+    assert capped.position_error_m < 1e-3 and capped.orientation_error_rad < np.radians(0.1)
+    assert capped.relative_velocity_m_s < 1e-3 and capped.relative_angular_velocity_rad_s < np.radians(0.05)

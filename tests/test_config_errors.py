@@ -229,6 +229,8 @@ CASES = [
          "scenario_I_target.toml", "shapes", "expected a table"),
     Case("shape-kind-unknown", replace(TARGET_I, 'kind = "box"', 'kind = "sphere"'),
          "scenario_I_target.toml", "shapes[0].kind", "must be one of"),
+    Case("start-acceleration-unknown", set_key(SCEN_I, "stabilization", "start_acceleration", '"smooth"'),
+         "scenario_I.toml", "stabilization.start_acceleration", "must be one of"),
     # out-of-range values
     Case("target-negative-mass", set_key(TARGET_I, "", "mass_kg", "-3.0"),
          "scenario_I_target.toml", "mass_kg", "must be > 0"),

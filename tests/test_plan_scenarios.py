@@ -55,6 +55,43 @@ def scenario_II_unconstrained():
     return plan, verify(plan)
 
 
+@pytest.fixture(scope="module")
+def scenario_I():
+    return _plan("scenario_I")
+
+
+def test_scenario_I_is_feasible_with_29_collision_pairs(scenario_I):
+    plan, report = scenario_I
+    assert report.feasible, report.violations
+    assert report.pair_count == 29
+    # the grasp is impact-free and the compound comes to rest relative to the chaser
+    assert plan.tracking.position_error_m < 1e-3
+    assert plan.tracking.relative_velocity_m_s < 1e-3
+    assert np.abs(plan.qd[-1]).max() < 1e-6
+
+
+def test_scenario_I_approach_energy_cost_centres_the_base():
+    """Eq. 16 alone: the base needs no offset to reach the target (paper: θ_b(0) ≈ 1e-4 m)."""
+    plan, report = _plan("scenario_I", approach_energy=1.0)
+    offset = np.linalg.norm(plan.approach.base_offset_m)
+    print(f"scenario I |θ_b(0)| with the approach-energy cost: {offset:.2e} m")
+    assert report.feasible, report.violations
+    assert offset < 0.01
+
+
+def test_scenario_I_distance_and_manipulability_costs_add_clearance(scenario_I):
+    """Eq. 14 + 15 push the arm away from every body: more clearance than the feasibility solve's."""
+    plan, report = _plan("scenario_I", manipulability=1.0, min_distance=1.0)
+
+    def approach_clearance(rep) -> float:  # the costs act on the approach: its dense minimum distance (m)
+        return float(rep.min_distance_m[rep.phase_index == 0].min())
+
+    d_feasible, d_costs = approach_clearance(scenario_I[1]), approach_clearance(report)
+    print(f"scenario I approach minimum distance: feasibility {d_feasible:.4f} m, with costs {d_costs:.4f} m")
+    assert report.feasible, report.violations
+    assert d_costs > d_feasible
+
+
 def test_scenario_II_is_feasible_and_respects_the_grasp_torque_limit(scenario_II):
     plan, report = scenario_II
     assert report.feasible, report.violations

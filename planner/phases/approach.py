@@ -42,6 +42,9 @@ Array = NDArray[np.float64]
 TARGET_STEPS_PER_S = 1.0  # RK4 steps of the symbolic target prediction per second of delay
 TRACKING_RK4_STEPS = 3  # base-drift RK4 steps per tracking-node interval
 STOPPING_FRACTION = 0.15  # the stabilization guess stops the joints within this fraction of t_f³
+# the tracking law's joint rates at the grasp within this fraction of the limits (as on the last node step,
+# TRACKING_SPEED_MARGIN): the rate model leaves out two small null-space terms
+GRASP_RATE_FRACTION = 0.8
 
 
 @dataclass(frozen=True)
@@ -84,8 +87,10 @@ class ApproachProblem:
     The tracking phase's constraints enter the NLP (paper §4.2) through three configuration variables
     ``Q_tr`` at the tracking nodes (fractions :data:`TRACKING_NODES` of t_f²): the end-effector on the
     moving grasp frame (with the closing back-off), joint boxes, collision, and joint-velocity bounds on
-    the steps between nodes; the base drift along that path is integrated too. The tracking IK then
-    resolves its redundancy toward these configurations (null-space reference).
+    the steps between nodes; the base drift along that path is integrated too. At the grasp node the
+    tracking law's joint rates are bounded, and the joints must have room to stop from them (the
+    stabilization starts there). The tracking IK then resolves its redundancy toward these
+    configurations (null-space reference).
     """
 
     def __init__(self, scenario: Scenario, ff: FreeFloatingModel | None = None) -> None:
@@ -199,9 +204,13 @@ class ApproachProblem:
             tr_err += [p_ee_j - (p_G - d * R_G[:, 2]), _vee_skew(ca.mtimes(R_G.T, R_ee_j))]
             tr_poses.append(poses_j)
         # joint boxes at the via points (Eq. 17-18) and at the tracking nodes (Eq. 8)
-        # stopping room for the stabilization: decelerating from the grasp rate over STOPPING_FRACTION·t_f³
-        # moves a joint by q̇·STOPPING_FRACTION·t_f³/2, which must stay inside the limits
-        qd_grasp = (Q_tr[-1] - Q_tr[-2]) / (tr_times[-1] - tr_times[-2])
+        # stopping room for the stabilization: decelerating from the grasp rates over STOPPING_FRACTION·t_f³
+        # moves a joint by q̇·STOPPING_FRACTION·t_f³/2, which must stay inside the limits. The rates are the
+        # tracking law's at the grasp, not the finite difference between the last two nodes: near the
+        # elbow singularity the IK's rates grow like 1/sin(q4) in the last fraction of a second (scenario I
+        # met its grasp at q4 = 0.05 rad with 1.1 rad/s on joint 1, and no stabilization could start there)
+        qd_nodes = (Q_tr[-1] - Q_tr[-2]) / (tr_times[-1] - tr_times[-2])
+        qd_grasp = self._grasp_joint_rates(x_tr[-1], Q_tr[-1], qd_nodes, target_R_tr[-1], om, T_bg)
         q_stop = Q_tr[-1] + qd_grasp * (STOPPING_FRACTION * sc.phases.stabilization_s / 2)
         q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx], *Q_tr, q_stop)
         qd_box = ca.vertcat(*[Qdn[i, :].T for i in via_idx])
@@ -226,17 +235,17 @@ class ApproachProblem:
         n_q_box = k + n_tr + 1
         margin = sc.limits.collision_margin_m
         tr_err_v = ca.vertcat(*tr_err)
-        g_parts = [pos_err, rot_err, tr_err_v, q_box, qd_box, qd_steps, *dists]
+        g_parts = [pos_err, rot_err, tr_err_v, q_box, qd_box, qd_steps, qd_grasp, *dists]
         bo = constraint_backoff
         q_lo, q_hi = rob.q_min + bo.JOINT_POSITION_RAD, rob.q_max - bo.JOINT_POSITION_RAD
         qd_lim = bo.JOINT_VELOCITY_FRACTION * rob.qd_max
         lbg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_lo, n_q_box),
                np.tile(-qd_lim, k), np.concatenate([-f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
-               np.full(len(all_poses) * n_d, margin + bo.COLLISION_M)]
+               -GRASP_RATE_FRACTION * rob.qd_max, np.full(len(all_poses) * n_d, margin + bo.COLLISION_M)]
         ubg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_hi, n_q_box),
                np.tile(qd_lim, k), np.concatenate([f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
-               np.full(len(all_poses) * n_d, np.inf)]
-        self.n_before_dist = sum(part.numel() for part in g_parts[:6])
+               GRASP_RATE_FRACTION * rob.qd_max, np.full(len(all_poses) * n_d, np.inf)]
+        self.n_before_dist = sum(part.numel() for part in g_parts[:7])
         start = sum(part.numel() for part in g_parts[:5])
         self._rate_slice = slice(start, start + qd_steps.numel())
         self.tracking_speed_scale = 1.0
@@ -276,6 +285,25 @@ class ApproachProblem:
         })
         self.n_pairs = n_d
         self.n_dist = len(all_poses) * n_d
+
+    def _grasp_joint_rates(self, x_base, q, qd_nodes, R_target, omega_body,  # noqa: ANN001, ANN202
+                           T_body_grasp: Array):
+        """Joint rates (rad/s) of the tracking law (Eq. 7, :mod:`planner.phases.tracking`) at the grasp.
+
+        There the pose error is zero and the gains have ramped up, so the IK's rates are
+        ``J*⁺ t_g + (I − J*⁺J*) q̇_ref`` with ``t_g`` the grasp frame's twist (target COM fixed, rotating
+        at ``R_target ω_body``) and ``q̇_ref`` the null-space reference, the slope between the last two
+        tracking nodes (its manipulability and posture-feedback terms nearly cancel and are left out:
+        measured 0.005 rad/s on scenario I). Near a singularity of J* (the elbow straight) the first term
+        blows up, which the node-to-node rates cannot see.
+        """
+        R_wb = quat_to_rotation_sym(x_base[3:7])
+        w_T = ca.mtimes(R_target, omega_body)
+        v_g = ca.cross(w_T, ca.mtimes(R_target, ca.DM(T_body_grasp[:3, 3])))
+        twist_base = ca.vertcat(ca.mtimes(R_wb.T, v_g), ca.mtimes(R_wb.T, w_T))
+        J = self.ff.gen_jacobian(q)[0]
+        # J⁺ t + (I − J⁺J) q̇_ref = q̇_ref + J⁺ (t − J q̇_ref), with J⁺ = Jᵀ (J Jᵀ)⁻¹ (J has full row rank)
+        return qd_nodes + ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), twist_base - ca.mtimes(J, qd_nodes)))
 
     def solve(self, state: TargetState, warm_start: ApproachSolution | None = None,
               max_starts: int = 3, tracking_speed_scale: float | None = None) -> ApproachSolution:

@@ -2,8 +2,10 @@
 
 At the grasp the target becomes rigidly attached to the gripper (its inertia is added to the last
 link); the compound keeps the momentum it had at that instant (h₀ ≠ 0: the target's spin). The joint
-B-spline of Eq. 24 starts at the tracking end state (position, velocity and — our generalisation —
-acceleration, so the joint motion is C² across the join) and brings the joint velocities to zero at
+B-spline of Eq. 24 starts at the tracking end state: position, velocity, and an acceleration the scenario
+chooses — the tracking IK's (our generalisation: the joint motion is C² across the join and the grasp
+wrench starts from zero, which a tight grasp-torque limit needs) or zero (the paper's Eq. 24, which
+copes with a grasp where the IK is still accelerating hard) — and brings the joint velocities to zero at
 t_f³ (Eq. 11). Constraints at k via points: joint boxes (Eq. 12), collision with the target now in the
 chain (Eq. 13), and the grasp wrench within its limits: the force and moment the gripper exerts on the
 target, ``F = m_T a_T``, ``M = I_T ω̇_T + ω_T × I_T ω_T + (p_T − p_grasp) × F`` (about the grasp point),
@@ -44,7 +46,7 @@ class GraspState:
 
     q: Array  # rad
     qd: Array  # rad/s
-    qdd: Array  # rad/s²
+    qdd: Array  # rad/s², the stabilization spline's start acceleration (scenario.stabilization.start_acceleration)
     x_base: Array  # [p_world_base, quat_world_base]
     h_world: Array  # [P, L_G] of the compound, world (N·s, N·m·s)
     T_ee_target: Array  # 4×4, target body frame in the ee (grasp) frame

@@ -102,6 +102,8 @@ def print_report(result: dict[str, Any]) -> None:
           f"Python {m['python']}, load {m['load_average_start']} → {m['load_average_end']}")
     sections = []
     for name, digest in SECTIONS.items():
+        if name not in result:  # a partial run (--only) into a new file
+            continue
         data = result[name]
         sections.append((name, [("FAILED", data["error"])]) if "error" in data else digest(data))
     width = max(len(label) for _, rows in sections for label, _ in rows)
@@ -109,4 +111,5 @@ def print_report(result: dict[str, Any]) -> None:
         print(title)
         for label, value in rows:
             print(f"  {label:<{width}}  {value}")
-    print(f"wall time {result['wall_s']:.0f} s")
+    if "wall_s" in result:
+        print(f"wall time {result['wall_s']:.0f} s")
