@@ -33,6 +33,7 @@ from planner.verify import VerifyReport, verify
 CONSISTENT_DELAY_S = 3.0
 PERIOD_FREE = float("inf")
 FINISH_RESERVE_S = 3.0  # kept back from the budget to re-simulate, verify and export a refined plan (s)
+PHASE_SNAP_DEG = 1e-9  # spin phases this close to a corner's are that corner's phase
 MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started (s)
 
 
@@ -124,7 +125,12 @@ class TableQuery:
         rate = coords[names.index("spin_rate_deg_s")] if "spin_rate_deg_s" in names else None
         if rate is None or rate <= 0:
             return 0.0
-        return -(coords[i] - self.grid.coordinates(point)[i]) / rate
+        dphase_deg = coords[i] - self.grid.coordinates(point)[i]
+        if abs(dphase_deg) <= PHASE_SNAP_DEG:
+            # the corner's own phase, up to the roundoff of quaternion → angle: keep its start delay bit
+            # for bit (a 1e-15 s shift feeds the tracking's finite differences and moves the plan ~1e-4)
+            return 0.0
+        return -dphase_deg / rate
 
     # ---- the whole query ---------------------------------------------------------------------
 
