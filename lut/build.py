@@ -76,9 +76,7 @@ def prepare(grid_path: str | Path) -> tuple[GridConfig, Scenario, Grid]:
     """Load and validate the grid config, its scenario, and the grid over target states."""
     config = load_grid(grid_path)
     scenario = load_scenario(config.scenario_path)
-    default = TargetState(np.asarray(scenario.target_state.attitude_wxyz),
-                          np.asarray(scenario.target_state.omega_body_rad_s))
-    return config, scenario, Grid(config, scenario.target.inertia_body_kg_m2, default)
+    return config, scenario, Grid(config, scenario.target.inertia_body_kg_m2, scenario.target_state.as_state())
 
 
 def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: Record | None,

@@ -64,10 +64,8 @@ class TableQuery:
                                  "pass --scenario")
         self.scenario: Scenario = load_scenario(path)
         self.table.check_model(table_hash(self.scenario), str(path))
-        default = TargetState(np.asarray(self.scenario.target_state.attitude_wxyz),
-                              np.asarray(self.scenario.target_state.omega_body_rad_s))
         config = load_grid_text(attrs["config_text"], str(table_path), Path(path))
-        self.grid = Grid(config, self.scenario.target.inertia_body_kg_m2, default)
+        self.grid = Grid(config, self.scenario.target.inertia_body_kg_m2, self.scenario.target_state.as_state())
         if self.grid.n_points != self.table.n_points:
             raise TableError(f"{table_path}: grid has {self.grid.n_points} points but the table {self.table.n_points}")
         self.records = {p: self.table.record(p) for p in range(self.table.n_points)}

@@ -109,8 +109,7 @@ class Planner:
             retry = self.approach.solve(state, app, tracking_speed_scale=scale)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
-                app = replace(app, solve_time_s=app.solve_time_s + retry.solve_time_s,
-                              iterations=app.iterations + retry.iterations)
+                app = replace_timing(app, retry)
                 notes.append(f"the re-solve failed ({retry.status}); the first approach is kept")
                 break
             app = replace_timing(retry, app)
@@ -213,7 +212,7 @@ class Planner:
 
 
 def replace_timing(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:
-    """The re-solved approach, with solve time and iterations accumulated over both solves."""
+    """``new``, with solve time and iterations accumulated over both solves."""
     return replace(new, solve_time_s=new.solve_time_s + old.solve_time_s, iterations=new.iterations + old.iterations)
 
 

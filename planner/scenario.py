@@ -23,6 +23,7 @@ from planner.errors import ConfigError
 from planner.geometry import Box, Capsule, PlacedShape, make_transform
 from planner.robot import RobotModel, load_robot
 from planner.rotation import matrix_to_quat, rpy_to_matrix
+from planner.target import TargetState
 
 Array = NDArray[np.float64]
 
@@ -255,6 +256,10 @@ class TargetStateConfig:
 
     attitude_wxyz: Array
     omega_body_rad_s: Array
+
+    def as_state(self) -> TargetState:
+        """This default as the planner's :class:`~planner.target.TargetState`."""
+        return TargetState(np.asarray(self.attitude_wxyz, dtype=float), np.asarray(self.omega_body_rad_s, dtype=float))
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,6 @@ from planner.plan import Planner
 from planner.robot import load_robot, pin_configuration
 from planner.rotation import quat_to_matrix
 from planner.scenario import load_scenario
-from planner.target import TargetState
 from planner.verify import verify
 
 pytestmark = pytest.mark.slow
@@ -30,15 +29,11 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "configs" / "scenarios"
 
 
-def _default_state(sc):
-    return TargetState(np.asarray(sc.target_state.attitude_wxyz), np.asarray(sc.target_state.omega_body_rad_s))
-
-
 def _plan(name: str, **cost_weights):
     sc = load_scenario(SCENARIOS / f"{name}.toml")
     if cost_weights:
         sc = replace(sc, costs=replace(sc.costs, **cost_weights))
-    plan = Planner(sc).plan(_default_state(sc))
+    plan = Planner(sc).plan(sc.target_state.as_state())
     return plan, verify(plan)
 
 
@@ -51,7 +46,7 @@ def scenario_II():
 def scenario_II_unconstrained():
     sc = load_scenario(SCENARIOS / "scenario_II.toml")
     sc = replace(sc, limits=replace(sc.limits, grasp_torque_max_nm=np.inf))
-    plan = Planner(sc).plan(_default_state(sc))
+    plan = Planner(sc).plan(sc.target_state.as_state())
     return plan, verify(plan)
 
 

@@ -305,7 +305,7 @@ def test_solved_plan_is_consistent_under_verification():
     from planner.plan import Planner
 
     sc = load_scenario(CONFIGS / "scenarios" / "scenario_II.toml")
-    state = TargetState(sc.target_state.attitude_wxyz, sc.target_state.omega_body_rad_s)
+    state = sc.target_state.as_state()
     report = verify(Planner(sc).plan(state))
     for name in ("momentum_chaser", "momentum_compound", "joint_rate_consistency", "grasp_position",
                  "grasp_orientation", "grasp_velocity", "grasp_angular_velocity", "join_velocity_approach_tracking",

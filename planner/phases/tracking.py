@@ -108,7 +108,7 @@ class TrackingController:
         d0 = sc.approach.pregrasp_backoff_m
         K = sc.tracking.pose_gain_per_s
         kn = sc.tracking.nullspace_gain
-        peak_demand = [0.0]
+        peak_demand = 0.0
 
         def desired(t: float) -> tuple[Array, Array]:
             R_g, p_g = (a[0] for a in motion.grasp_pose(t_start_s + t))
@@ -135,6 +135,7 @@ class TrackingController:
             q_ref_d = q_ref.derivative()
 
         def rates(t: float, q: Array, x: Array) -> tuple[Array, Array]:
+            nonlocal peak_demand
             J, R_ee, p_ee, grad_w = (np.asarray(a) for a in self.kinematics(q, x))
             R_d, p_d = desired(t)
             e = np.concatenate([p_d - p_ee.ravel(), pin.log3(R_d @ R_ee.T)])
@@ -151,7 +152,7 @@ class TrackingController:
             # continuous (a hard min() kinks it, and central differences of the base pose then lose O(dt²)),
             # and below 0.85 of the cap it changes q̇ by < 1e-4 relative (the grasp, ≤ 0.8 of the limits)
             demand = np.abs(qd) / sc.robot.qd_max
-            peak_demand[0] = max(peak_demand[0], float(demand.max()))
+            peak_demand = max(peak_demand, float(demand.max()))
             r = float(np.sum((demand / RATE_CAP_FRACTION) ** RATE_CAP_POWER) ** (1.0 / RATE_CAP_POWER))
             qd = qd / (1.0 + r**RATE_CAP_POWER) ** (1.0 / RATE_CAP_POWER)
             xd = _base_rate(self.ff, q, qd, x)
@@ -193,7 +194,7 @@ class TrackingController:
             orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ R_free).T @ R_ee))),
             relative_velocity_m_s=float(np.linalg.norm(v_rel)),
             relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
-            peak_rate_demand=peak_demand[0],
+            peak_rate_demand=peak_demand,
         )
 
 

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize
 
-from bench_sections.common import Settings, default_state, load_scenario_named, timed
+from bench_sections.common import Settings, load_scenario_named, timed
 
 
 class ApproachNLP:
@@ -28,7 +28,7 @@ class ApproachNLP:
         self.scenario = sc
         self.problem, self.build_s = timed(lambda: ApproachProblem(sc))
         prob = self.problem
-        state = default_state(sc)
+        state = sc.target_state.as_state()
         # the planner's own cold start: the best scanned initial guess
         guess, self.guess_s = timed(lambda: initial_guesses(sc, prob.spline, state, 1)[0])
         w0 = np.concatenate([guess.params, guess.base_offset_m, [guess.start_delay_s], guess.q_tracking.ravel()])

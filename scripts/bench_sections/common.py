@@ -140,14 +140,6 @@ def load_scenario_named(name: str):  # noqa: ANN201 - planner.scenario.Scenario
     return load_scenario(SCENARIOS / f"{name}.toml")
 
 
-def default_state(scenario):  # noqa: ANN001, ANN201 - Scenario -> TargetState
-    """The scenario's default observed target state (what ``lutgen plan`` uses without options)."""
-    from planner.target import TargetState
-
-    ts = scenario.target_state
-    return TargetState(np.asarray(ts.attitude_wxyz, dtype=float), np.asarray(ts.omega_body_rad_s, dtype=float))
-
-
 @contextmanager
 def environment(**variables: str) -> Iterator[None]:
     """Set environment variables for the block (child processes inherit them), then restore them."""

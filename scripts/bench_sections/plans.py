@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-from bench_sections.common import Settings, default_state, load_scenario_named, skipped, stats, timed
+from bench_sections.common import Settings, load_scenario_named, skipped, stats, timed
 
 SCENARIO_NAMES = ("scenario_I", "scenario_II")
 PHASE_KEYS = ("approach_s", "tracking_s", "stabilization_s", "total_s")
@@ -31,7 +31,7 @@ def _plan_runs(scenario, runs: int) -> dict[str, Any]:  # noqa: ANN001 - Scenari
     from planner.verify import verify
 
     planner, build_s = timed(lambda: Planner(scenario))
-    state = default_state(scenario)
+    state = scenario.target_state.as_state()
     phases: dict[str, list[float]] = {key: [] for key in PHASE_KEYS}
     iterations: dict[str, list[int]] = {"approach": [], "stabilization": []}
     feasible, status = [], []
