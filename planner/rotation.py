@@ -36,14 +36,15 @@ def quat_conjugate(q: ArrayLike) -> NDArray[np.float64]:
 
 
 def quat_to_matrix(q: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrix of a ``[w, x, y, z]`` quaternion (normalised first)."""
+    """Rotation matrix of a ``[w, x, y, z]`` quaternion (normalised first); a stack (..., 4) gives (..., 3, 3)."""
     q = np.asarray(q, dtype=float)
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([
+    w, x, y, z = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
+    R = np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
     ])
+    return R if q.ndim == 1 else np.moveaxis(R, (0, 1), (-2, -1))
 
 
 def matrix_to_quat(R: ArrayLike) -> NDArray[np.float64]:
@@ -90,3 +91,36 @@ def rotation_angle_between(R_a: ArrayLike, R_b: ArrayLike) -> float:
     R = np.asarray(R_a, dtype=float).T @ np.asarray(R_b, dtype=float)
     c = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
     return float(np.arccos(c))
+
+
+# rotation angles above π − this use the symmetric part of R for the axis: there the antisymmetric part,
+# sin θ · u, has lost the digits (its norm is ~ the distance to π)
+_LOG_NEAR_PI_RAD = 1e-3
+
+
+def rotation_log(R: ArrayLike) -> NDArray[np.float64]:
+    """Rotation vectors ``φ = θ u`` (rad) with ``R = exp([φ]×)`` for a stack of rotations (..., 3, 3).
+
+    θ = atan2(‖v‖, (tr R − 1)/2) with ``v = vee(R − Rᵀ)/2 = sin θ · u``: full precision for small angles,
+    where arccos of the trace is not; near π the axis comes from ``(R + Rᵀ)/2 − cos θ I = (1 − cos θ) u uᵀ``.
+    Vectorised twin of pinocchio's ``log3`` (its oracle in the tests).
+    """
+    R = np.asarray(R, dtype=float)
+    v = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    s = np.linalg.norm(v, axis=-1)
+    c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
+    theta = np.arctan2(s, c)
+    # θ / sin θ, with its series where sin θ underflows the division
+    small = s < 1e-6
+    factor = np.where(small, 1.0 + theta**2 / 6.0, theta / np.where(small, 1.0, s))
+    phi = factor[..., None] * v
+    near_pi = theta > np.pi - _LOG_NEAR_PI_RAD
+    if np.any(near_pi):
+        Rn, cn, vn = R[near_pi], c[near_pi], v[near_pi]
+        B = 0.5 * (Rn + np.swapaxes(Rn, -1, -2)) - cn[:, None, None] * np.eye(3)
+        col = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
+        u = B[np.arange(len(col)), :, col]
+        u /= np.linalg.norm(u, axis=-1, keepdims=True)
+        u *= np.where(np.einsum("ni,ni->n", u, vn) < 0.0, -1.0, 1.0)[:, None]  # the sign sin θ · u carries
+        phi[near_pi] = theta[near_pi, None] * u
+    return phi

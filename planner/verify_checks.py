@@ -22,7 +22,7 @@ from planner.verify_kinematics import (
     TIME_TOL_S,
     PinKinematics,
     base_twist_world,
-    derivative,
+    derivatives,
     extrapolate,
     rotation_rates,
 )
@@ -91,13 +91,12 @@ def joint_checks(robot: RobotModel, t: Array, q: Array, qd: Array, phase_index: 
 def rate_consistency_check(robot: RobotModel, t: Array, q: Array, qd: Array, phase_index: Array,
                            segments: list[Segment], sel: Array) -> CheckResult:
     """Stored joint rates vs FD of the stored joint angles (the rates feed the velocity and momentum checks)."""
-    worst = (0.0, 0, 0)
-    for k in sel:
-        seg = segments[int(phase_index[k])]
-        err = np.abs(derivative(t, q, int(k), seg, 1) - qd[k])
-        j = int(np.argmax(err))
-        if err[j] > worst[0]:
-            worst = (float(err[j]), int(k), j)
+    err = np.zeros((len(sel), robot.n_joints))
+    for p, seg in enumerate(segments):
+        rows = np.flatnonzero(phase_index[sel] == p)
+        err[rows] = np.abs(derivatives(t, q, sel[rows], seg, 1) - qd[sel[rows]])
+    r, j = np.unravel_index(int(np.argmax(err)), err.shape)
+    worst = (float(err[r, j]), int(sel[r]), int(j))
     e, k, j = worst
     return make_check("joint_rate_consistency", e, RATE_CONSISTENCY_TOL_RAD_S, "rad/s",
                       f"{robot.joints[j].name}: |q̇ − FD(q)| at {when(t[k], phase_index[k])}", t[k])
@@ -165,11 +164,14 @@ def momentum_checks(chaser: PinKinematics, compound: PinKinematics, motion: Targ
     for name, model, rows in (("momentum_chaser", chaser, np.flatnonzero(sel <= k_pre)),
                               ("momentum_compound", compound, np.flatnonzero(sel >= k_post))):
         h, h_arm = np.empty((len(rows), 6)), np.empty((len(rows), 6))
-        for r, i in enumerate(rows):
-            k = int(sel[i])
-            segment = segments[2] if name == "momentum_compound" else segments[min(int(phase_index[k]), 1)]
-            v, w = base_twist_world(t, x, k, segment)
-            h[r], h_arm[r] = model.momentum(x[k], q[k], v, w, qd[k])
+        ks = sel[rows]
+        v, w = np.empty((len(rows), 3)), np.empty((len(rows), 3))
+        phases = np.full(len(rows), 2) if name == "momentum_compound" else np.minimum(phase_index[ks], 1)
+        for p in np.unique(phases):
+            part = phases == p
+            v[part], w[part] = base_twist_world(t, x, ks[part], segments[p])
+        for r, k in enumerate(ks):
+            h[r], h_arm[r] = model.momentum(x[k], q[k], v[r], w[r], qd[k])
         momentum[rows] = h
         h_ref = np.zeros(6) if name == "momentum_chaser" else h[0]  # rows[0] is the grasp instant
         rel, sP, sL = _relative_deviation(h - h_ref, h_arm, h_ref)
@@ -195,8 +197,8 @@ def grasp_checks(motion: TargetMotion, t: Array, T_ee: Array, T_free: Array, T_b
     p_ee, R_ee = T_ee[k, :3, 3], T_ee[k, :3, :3]
     position_error = float(np.linalg.norm(p_ee - T_grasp[:3, 3]))
     orientation_error = float(np.linalg.norm(pin.log3(T_grasp[:3, :3].T @ R_ee)))
-    v_ee = derivative(t, T_ee[:, :3, 3], k, segment, 1)
-    w_ee, _ = rotation_rates(t, T_ee[:, :3, :3], k, segment)
+    v_ee = derivatives(t, T_ee[:, :3, 3], k, segment, 1)[0]
+    w_ee = rotation_rates(t, T_ee[:, :3, :3], k, segment)[0][0]
     w_target = motion.grasp_twist(t[k])[1][0]
     v_target = np.cross(w_target, p_ee - T_free[k, :3, 3])  # target material point at the ee (COM at rest)
     dw = float(np.linalg.norm(w_ee - w_target))
@@ -253,16 +255,16 @@ def wrench_checks(sc: Scenario, t: Array, T_ee: Array, T_attached: Array, segmen
     mass, I_body = sc.target.mass_kg, sc.target.inertia_body_kg_m2
     wrench = np.zeros((len(sel), 6))
     post = np.flatnonzero(sel >= k_post)
-    for i in post:
-        k = int(sel[i])
-        a_com = derivative(t, T_attached[:, :3, 3], k, segment, 2)
-        w, alpha = rotation_rates(t, T_attached[:, :3, :3], k, segment)
-        R_T = T_attached[k, :3, :3]
-        I_w = R_T @ I_body @ R_T.T
-        F = mass * a_com
-        M = I_w @ alpha + np.cross(w, I_w @ w) + np.cross(T_attached[k, :3, 3] - T_ee[k, :3, 3], F)
-        R_ee = T_ee[k, :3, :3]
-        wrench[i] = np.concatenate([R_ee.T @ F, R_ee.T @ M])
+    ks = sel[post]
+    a_com = derivatives(t, T_attached[:, :3, 3], ks, segment, 2)
+    w, alpha = rotation_rates(t, T_attached[:, :3, :3], ks, segment)
+    R_T = T_attached[ks, :3, :3]
+    I_w = np.einsum("mij,jk,mlk->mil", R_T, I_body, R_T)
+    F = mass * a_com
+    M = (np.einsum("mij,mj->mi", I_w, alpha) + np.cross(w, np.einsum("mij,mj->mi", I_w, w))
+         + np.cross(T_attached[ks, :3, 3] - T_ee[ks, :3, 3], F))
+    R_ee = T_ee[ks, :3, :3]
+    wrench[post] = np.concatenate([np.einsum("mji,mj->mi", R_ee, F), np.einsum("mji,mj->mi", R_ee, M)], axis=1)
     out = {}
     for name, cols, limit, unit in (("grasp_force", slice(0, 3), sc.limits.grasp_force_max_n, "N"),
                                     ("grasp_torque", slice(3, 6), sc.limits.grasp_torque_max_nm, "N·m")):

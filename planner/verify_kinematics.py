@@ -24,10 +24,10 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from planner.robot import RobotModel, pin_configuration, pin_velocity
-from planner.rotation import matrix_to_quat, quat_to_matrix
+from planner.rotation import matrix_to_quat, quat_to_matrix, rotation_log
 
 Array = NDArray[np.float64]
 
@@ -95,63 +95,78 @@ def phase_segments(t_s: Array, phase_index: Array, phases: dict[str, tuple[float
 # Finite differences
 
 
-def fd_weights(nodes: Array, x0: float, order: int) -> Array:
-    """Weights ``w`` with ``f^(order)(x0) ≈ Σ w_j f(nodes_j)`` (Fornberg 1988, any spacing)."""
-    n = len(nodes)
-    c = np.zeros((n, order + 1))
-    c[0, 0] = 1.0
-    c1, c4 = 1.0, nodes[0] - x0
+def fd_weights(nodes: ArrayLike, x0: ArrayLike, order: int) -> Array:
+    """Weights ``w`` with ``f^(order)(x0) ≈ Σ w_j f(nodes_j)`` (Fornberg 1988, any spacing).
+
+    ``nodes`` (..., n) and ``x0`` (scalar or (...)) may carry leading dimensions: one stencil per row,
+    all rows at once (the verifier differentiates thousands of samples).
+    """
+    nodes = np.asarray(nodes, dtype=float)
+    x = nodes - np.asarray(x0, dtype=float)[..., None]
+    n = nodes.shape[-1]
+    c = np.zeros((*nodes.shape[:-1], n, order + 1))
+    c[..., 0, 0] = 1.0
+    c1, c4 = 1.0, x[..., 0]
     for i in range(1, n):
         mn = min(i, order)
-        c2, c5, c4 = 1.0, c4, nodes[i] - x0
+        c2, c5, c4 = 1.0, c4, x[..., i]
         for j in range(i):
-            c3 = nodes[i] - nodes[j]
-            c2 *= c3
+            c3 = nodes[..., i] - nodes[..., j]
+            c2 = c2 * c3
             if j == i - 1:
                 for k in range(mn, 0, -1):
-                    c[i, k] = c1 * (k * c[i - 1, k - 1] - c5 * c[i - 1, k]) / c2
-                c[i, 0] = -c1 * c5 * c[i - 1, 0] / c2
+                    c[..., i, k] = c1 * (k * c[..., i - 1, k - 1] - c5 * c[..., i - 1, k]) / c2
+                c[..., i, 0] = -c1 * c5 * c[..., i - 1, 0] / c2
             for k in range(mn, 0, -1):
-                c[j, k] = (c4 * c[j, k] - k * c[j, k - 1]) / c3
-            c[j, 0] = c4 * c[j, 0] / c3
+                c[..., j, k] = (c4 * c[..., j, k] - k * c[..., j, k - 1]) / c3
+            c[..., j, 0] = c4 * c[..., j, 0] / c3
         c1 = c2
-    return c[:, order]
+    return c[..., order]
 
 
-def stencil(k: int, segment: tuple[int, int], order: int) -> Array:
-    """Indices of the :data:`STENCIL_POINTS` samples of ``segment`` nearest to k (centred inside,
-    one-sided at an end): fourth order where the motion is smooth (see the module docstring)."""
+def stencils(k: ArrayLike, segment: tuple[int, int], order: int) -> Array:
+    """Indices (m, P) of the :data:`STENCIL_POINTS` samples of ``segment`` nearest to each sample in k
+    (centred inside, one-sided at an end): fourth order where the motion is smooth (module docstring)."""
+    k = np.atleast_1d(np.asarray(k, dtype=int))
     lo, hi = segment
-    if not lo <= k <= hi:
-        raise ValueError(f"sample {k} outside its segment [{lo}, {hi}]")
+    if np.any((k < lo) | (k > hi)):
+        raise ValueError(f"samples {k[(k < lo) | (k > hi)][:3].tolist()} outside their segment [{lo}, {hi}]")
     points = min(STENCIL_POINTS, hi - lo + 1)
     if points < order + 1:
         raise ValueError(f"segment [{lo}, {hi}] too short for a derivative of order {order}")
-    start = max(lo, min(k - points // 2, hi - points + 1))
-    return np.arange(start, start + points)
+    start = np.clip(k - points // 2, lo, hi - points + 1)
+    return start[:, None] + np.arange(points)
 
 
-def derivative(t_s: Array, values: Array, k: int, segment: tuple[int, int], order: int) -> Array:
-    """``order``-th time derivative (1 or 2) of ``values`` (n×d) at sample k by FD inside ``segment``."""
-    idx = stencil(k, segment, order)
-    w = fd_weights(t_s[idx] - t_s[k], 0.0, order)
-    return w @ values[idx]
+def derivatives(t_s: Array, values: Array, k: ArrayLike, segment: tuple[int, int], order: int) -> Array:
+    """``order``-th time derivative (1 or 2) of ``values`` (n×d) at the samples k (m,) by FD inside
+    ``segment``: (m, d)."""
+    k = np.atleast_1d(np.asarray(k, dtype=int))
+    idx = stencils(k, segment, order)
+    w = fd_weights(t_s[idx], t_s[k], order)
+    return np.einsum("mp,mpd->md", w, values[idx])
 
 
-def rotation_rates(t_s: Array, R: Array, k: int, segment: tuple[int, int]) -> tuple[Array, Array]:
-    """World angular velocity (rad/s) and acceleration (rad/s²) of the rotations ``R`` (n×3×3) at sample k."""
-    idx = stencil(k, segment, 2)
-    phi = np.array([pin.log3(R[j] @ R[k].T) for j in idx])
-    return fd_weights(t_s[idx] - t_s[k], 0.0, 1) @ phi, fd_weights(t_s[idx] - t_s[k], 0.0, 2) @ phi
+def rotation_rates(t_s: Array, R: Array, k: ArrayLike, segment: tuple[int, int]) -> tuple[Array, Array]:
+    """World angular velocities (rad/s) and accelerations (rad/s²), (m, 3) each, of the rotations ``R``
+    (n×3×3) at the samples k, by FD of the stencil's rotation vectors ``log(R_j R_kᵀ)``."""
+    k = np.atleast_1d(np.asarray(k, dtype=int))
+    idx = stencils(k, segment, 2)
+    phi = rotation_log(np.einsum("mpij,mkj->mpik", R[idx], R[k]))
+    offsets = t_s[idx] - t_s[k][:, None]
+    return (np.einsum("mp,mpd->md", fd_weights(offsets, 0.0, 1), phi),
+            np.einsum("mp,mpd->md", fd_weights(offsets, 0.0, 2), phi))
 
 
-def base_twist_world(t_s: Array, x_base: Array, k: int, segment: tuple[int, int]) -> tuple[Array, Array]:
-    """Velocity of the base origin and base angular velocity (world, m/s and rad/s) at sample k by FD."""
-    v = derivative(t_s, x_base[:, :3], k, segment, 1)
-    idx = stencil(k, segment, 1)
-    R_k = quat_to_matrix(x_base[k, 3:])
-    phi = np.array([pin.log3(quat_to_matrix(x_base[j, 3:]) @ R_k.T) for j in idx])
-    return v, fd_weights(t_s[idx] - t_s[k], 0.0, 1) @ phi
+def base_twist_world(t_s: Array, x_base: Array, k: ArrayLike, segment: tuple[int, int]) -> tuple[Array, Array]:
+    """Velocities of the base origin and base angular velocities (world, m/s and rad/s), (m, 3) each,
+    at the samples k by FD."""
+    k = np.atleast_1d(np.asarray(k, dtype=int))
+    v = derivatives(t_s, x_base[:, :3], k, segment, 1)
+    idx = stencils(k, segment, 1)
+    R = quat_to_matrix(x_base[:, 3:])
+    phi = rotation_log(np.einsum("mpij,mkj->mpik", R[idx], R[k]))
+    return v, np.einsum("mp,mpd->md", fd_weights(t_s[idx] - t_s[k][:, None], 0.0, 1), phi)
 
 
 def extrapolate(t_s: Array, values: Array, idx: Array, t0: float) -> Array:

@@ -20,11 +20,11 @@ from planner.freefloating import FreeFloatingModel
 from planner.phases.stabilization import GraspState, compound_robot
 from planner.plan import GraspPlan
 from planner.robot import pin_configuration
-from planner.rotation import matrix_to_quat
+from planner.rotation import matrix_to_quat, quat_to_matrix, rotation_log
 from planner.scenario import load_scenario
 from planner.target import TargetState
 from planner.verify import VerifyReport, summary_lines, verify
-from planner.verify_kinematics import fd_weights, select_samples
+from planner.verify_kinematics import derivatives, fd_weights, rotation_rates, select_samples
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 Q_GRASP = np.array([-0.549, 0.866, -1.88, -0.005, -1.129, 0.588, 0.925])  # attached target clear of the chaser
@@ -286,6 +286,56 @@ def test_finite_difference_weights():
     np.testing.assert_allclose(fd_weights(np.array([0.0, 1.0, 2.0, 3.0]), 0.0, 2), [2.0, -5.0, 4.0, -1.0])
     nodes = np.array([0.0, 0.3, 0.7, 1.2, 2.0])  # non-uniform: exact on quartics
     np.testing.assert_allclose(fd_weights(nodes, 0.5, 1) @ nodes**4, 4 * 0.5**3, rtol=1e-12)
+
+
+def test_finite_difference_weights_for_many_stencils_at_once_equal_one_at_a_time():
+    rng = np.random.default_rng(3)
+    nodes = np.sort(rng.uniform(-1.0, 1.0, size=(50, 5)), axis=1)
+    x0 = rng.uniform(-0.5, 0.5, size=50)
+    for order in (0, 1, 2):
+        rows = np.array([fd_weights(n, x, order) for n, x in zip(nodes, x0, strict=True)])
+        np.testing.assert_allclose(fd_weights(nodes, x0, order), rows, rtol=1e-13, atol=1e-13)
+
+
+def test_rotation_log_inverts_the_exponential_at_every_angle():
+    """Oracle: pinocchio's exp3. Angles from 1e-9 rad to within 1e-12 rad of π (the axis-from-symmetric-part
+    branch); the log is unique only below π, so the angles stay under it."""
+    rng = np.random.default_rng(4)
+    axes = rng.normal(size=(60, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([np.logspace(-9, 0, 30), np.pi - np.logspace(-12, -1, 30)])
+    phi = axes * angles[:, None]
+    R = np.array([pin.exp3(p) for p in phi])
+    err = np.linalg.norm(rotation_log(R) - phi, axis=1)
+    # near π the rotation matrix itself only holds the axis to ~1e-16 / sqrt(π − θ): 1e-8 rad at 1e-12 from π
+    assert err[:30].max() < 1e-14
+    assert err[30:].max() < 1e-7
+    assert rotation_log(R).shape == (60, 3) and rotation_log(R[0]).shape == (3,)
+
+
+def test_quaternion_stacks_convert_like_single_quaternions():
+    q = np.random.default_rng(5).normal(size=(4, 3, 4))
+    stacked = quat_to_matrix(q)
+    assert stacked.shape == (4, 3, 3, 3)
+    np.testing.assert_array_equal(stacked[2, 1], quat_to_matrix(q[2, 1]))
+
+
+def test_batched_derivatives_recover_analytic_rates_of_a_smooth_rotation():
+    """R(t) = exp([ω₀ t + ½ α t²]×) about a fixed axis: ω = (ω₀ + α t) u, α_world = α u, exact; the
+    5-point stencils err by O(h⁴) inside and O(h³) (first) / O(h³) (second) at the one-sided ends."""
+    h, u = 0.01, np.array([0.6, 0.0, 0.8])
+    t = np.arange(0.0, 1.0 + h / 2, h)
+    angle = 0.3 * t + 0.5 * 0.7 * t**2
+    R = np.array([pin.exp3(a * u) for a in angle])
+    p = np.column_stack([np.sin(t), t**3, np.zeros_like(t)])
+    k = np.arange(len(t))
+    w, alpha = rotation_rates(t, R, k, (0, len(t) - 1))
+    np.testing.assert_allclose(w, np.outer(0.3 + 0.7 * t, u), atol=1e-9)
+    np.testing.assert_allclose(alpha, np.tile(0.7 * u, (len(t), 1)), atol=1e-6)
+    v = derivatives(t, p, k, (0, len(t) - 1), 1)
+    np.testing.assert_allclose(v, np.column_stack([np.cos(t), 3 * t**2, np.zeros_like(t)]), atol=1e-8)
+    with pytest.raises(ValueError, match="outside their segment"):
+        derivatives(t, p, [5, 50], (0, 40), 1)
 
 
 def test_sample_selection_keeps_boundaries_and_the_step():

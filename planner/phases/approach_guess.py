@@ -94,7 +94,9 @@ class _PoseIK:
         rob = scenario.robot
         (bx, bz) = scenario.base_offset_bounds_m
         self.lo = np.concatenate([rob.q_min + 1e-3, [bx[0], bz[0]]])
-        self.hi = np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]])
+        # a pinned base component (min = max in the config) is legal, but least_squares wants lo < hi: open
+        # it by a hair; the approach NLP clips its start back into the configured bounds
+        self.hi = np.maximum(np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]]), self.lo + 1e-12)
 
     def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array],
               base_fixed: Array | None = None, drift: tuple[Array, Array] | None = None) -> Array | None:
