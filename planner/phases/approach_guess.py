@@ -105,11 +105,21 @@ class _PoseIK:
         fixed = (np.zeros(2), 0.0) if base_fixed is None else (np.asarray(base_fixed, dtype=float), 1.0)
 
         def solve_from(x0: Array, weight: float) -> Array:
+            # one CasADi call gives both the residual and its Jacobian; least_squares asks for them in
+            # separate calls at the same x, so keep the last pair (halves the scan's CasADi calls)
+            last: list = [None, None, None]
+
+            def evaluate(x: Array) -> tuple[Array, Array]:
+                if last[0] is None or not np.array_equal(last[0], x):
+                    r, J = self.fn(x, p_goal, R_goal, S, weight, dp, dR, *fixed)
+                    last[:] = [x.copy(), np.asarray(r).ravel(), np.asarray(J)]
+                return last[1], last[2]
+
             def residual(x: Array) -> Array:
-                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR, *fixed)[0]).ravel()
+                return evaluate(x)[0]
 
             def jacobian(x: Array) -> Array:
-                return np.asarray(self.fn(x, p_goal, R_goal, S, weight, dp, dR, *fixed)[1])
+                return evaluate(x)[1]
 
             return least_squares(residual, np.clip(x0, lo, hi), jac=jacobian, bounds=(lo, hi), xtol=1e-10,
                                  ftol=1e-10, max_nfev=200).x
