@@ -89,6 +89,21 @@ class RobotModel:
         return np.array([j.velocity_rad_s for j in self.joints])
 
     @property
+    def p_base_joint1_m(self) -> Array:
+        """Origin of the first joint in the base frame (m); its axis passes through it for every q."""
+        return self.joints[0].T_parent_joint[:3, 3].copy()
+
+    @property
+    def reach_from_joint1_m(self) -> float:
+        """Upper bound of ``|p_ee(q) − p_joint1|`` over all q (m).
+
+        The end-effector position is the first joint's origin plus the chain's later translations, each
+        rotated by the joints before it; rotations keep lengths, so the sum of their norms bounds it.
+        """
+        offsets = [j.T_parent_joint[:3, 3] for j in self.joints[1:]] + [self.T_last_ee[:3, 3]]
+        return float(sum(np.linalg.norm(t) for t in offsets))
+
+    @property
     def total_mass_kg(self) -> float:
         return float(sum(b.mass_kg for b in self.inertias))
 

@@ -97,12 +97,35 @@ class _PoseIK:
         # a pinned base component (min = max in the config) is legal, but least_squares wants lo < hi: open
         # it by a hair; the approach NLP clips its start back into the configured bounds
         self.hi = np.maximum(np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]]), self.lo + 1e-12)
+        self.p_joint1 = rob.p_base_joint1_m
+        self.reach_m = rob.reach_from_joint1_m
+
+    def out_of_reach(self, p_goal: Array, base_fixed: Array | None, drift: tuple[Array, Array]) -> bool:
+        """True when no configuration within the bounds puts the end-effector within REACH_TOLERANCE of
+        ``p_goal`` (m): the goal is farther than the arm's reach from every admissible first-joint origin.
+
+        Most unreachable meeting times of a scan fail this way; the least-squares solves would spend
+        ~200 evaluations from each of several starts to find the same answer.
+        """
+        # p_ee = (b_x, 0, b_z) + dp + dR (p_joint1 + r(q)) with |r(q)| ≤ reach, so the position error is at
+        # least dist((b_x, 0, b_z), rel) − reach, minimised over the admissible base offsets
+        dp, dR = drift
+        rel = p_goal - dp - dR @ self.p_joint1
+        if base_fixed is None:
+            lo = np.array([self.lo[-2], 0.0, self.lo[-1]])
+            hi = np.array([self.hi[-2], 0.0, self.hi[-1]])
+        else:
+            lo = hi = np.array([base_fixed[0], 0.0, base_fixed[1]])
+        gap = rel - np.clip(rel, lo, hi)
+        return bool(np.linalg.norm(gap) > self.reach_m + REACH_TOLERANCE)
 
     def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array],
               base_fixed: Array | None = None, drift: tuple[Array, Array] | None = None) -> Array | None:
         dp, dR = drift if drift is not None else (np.zeros(3), np.eye(3))
         lo, hi = self.lo, self.hi
         fixed = (np.zeros(2), 0.0) if base_fixed is None else (np.asarray(base_fixed, dtype=float), 1.0)
+        if self.out_of_reach(p_goal, base_fixed, (dp, dR)):
+            return None
 
         def solve_from(x0: Array, weight: float) -> Array:
             # one CasADi call gives both the residual and its Jacobian; least_squares asks for them in
