@@ -12,6 +12,7 @@ witness pair is unique (d is differentiable there for convex shapes).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Sequence
 
 import casadi as ca
@@ -20,6 +21,10 @@ import numpy as np
 from planner.collision import CollisionScene
 
 POSE_SIZE = 12  # vec(R) column-major (9) + p (3)
+# Sweeps kept per callback, keyed by the exact input: IPOPT evaluates the constraints at a trial point and,
+# once it is accepted, their Jacobian there, and CasADi's Jacobian call re-evaluates the values too; one
+# NLP evaluation queries up to ~70 pose sets, so a few hundred entries catch every repeat.
+SWEEP_CACHE_SIZE = 512
 
 
 def _poses(scene_bodies: Sequence[str], x: np.ndarray) -> dict[str, np.ndarray]:
@@ -76,6 +81,9 @@ class SceneDistanceCallback(ca.Callback):
                 rows += [k] * POSE_SIZE
                 cols += list(range(start, start + POSE_SIZE))
         self.jac_sparsity = ca.Sparsity.triplet(self.n_pairs, self.n_x, rows, cols)
+        self._body_a = np.array([self.index[a] for a, _ in scene.pairs])
+        self._body_b = np.array([self.index[b] for _, b in scene.pairs])
+        self._cache: OrderedDict[bytes, tuple[np.ndarray, ...]] = OrderedDict()
         self._jac: _DistanceJacobian | None = None
         self.construct(name, {"enable_fd": False})
 
@@ -91,23 +99,35 @@ class SceneDistanceCallback(ca.Callback):
     def get_sparsity_out(self, i: int) -> ca.Sparsity:
         return ca.Sparsity.dense(self.n_pairs, 1)
 
+    def _sweep(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Distances (m), witness points on A and B and unit normals (world) of every pair, cached."""
+        key = x.tobytes()
+        hit = self._cache.get(key)
+        if hit is not None:
+            self._cache.move_to_end(key)
+            return hit
+        results = self.scene.distances(_poses(self.body_order, x))
+        sweep = (np.array([r.distance_m for r in results]), np.array([r.p_world_a for r in results]),
+                 np.array([r.p_world_b for r in results]), np.array([r.normal_world for r in results]))
+        self._cache[key] = sweep
+        if len(self._cache) > SWEEP_CACHE_SIZE:
+            self._cache.popitem(last=False)
+        return sweep
+
     def evaluate(self, x: np.ndarray, with_jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """Distances (n_pairs,) and, if asked, the (n_pairs, n_x) Jacobian as a dense array."""
-        T = _poses(self.body_order, x)
-        results = self.scene.distances(T)
-        d = np.array([r.distance_m for r in results])
+        d, PA, PB, N = self._sweep(x)
         if not with_jacobian:
             return d, None
+        blocks = x.reshape(-1, POSE_SIZE)
+        Rt = blocks[:, :9].reshape(-1, 3, 3)  # the column-major vec(R) read row-major is Rᵀ
         jac = np.zeros((self.n_pairs, self.n_x))
-        for k, r in enumerate(results):
-            n = r.normal_world
-            for body, point, sign in ((r.pair[0], r.p_world_a, -1.0), (r.pair[1], r.p_world_b, 1.0)):
-                Tb = T[body]
-                local = Tb[:3, :3].T @ (point - Tb[:3, 3])
-                start = POSE_SIZE * self.index[body]
-                # column-major vec(R): entry (i, j) sits at 3 j + i
-                jac[k, start:start + 9] += sign * np.outer(n, local).ravel(order="F")
-                jac[k, start + 9:start + 12] += sign * n
+        rows = np.arange(self.n_pairs)[:, None]
+        for body, point, sign in ((self._body_a, PA, -1.0), (self._body_b, PB, 1.0)):
+            local = np.einsum("kij,kj->ki", Rt[body], point - blocks[body, 9:])  # witness in body coordinates
+            # column-major vec(R): entry (i, j) sits at 3 j + i, i.e. the C-order ravel of local ⊗ n
+            cols = POSE_SIZE * body[:, None] + np.arange(POSE_SIZE)
+            jac[rows, cols] = sign * np.concatenate([(local[:, :, None] * N[:, None, :]).reshape(-1, 9), N], axis=1)
         return d, jac
 
     def eval(self, args: list) -> list:
