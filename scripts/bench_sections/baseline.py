@@ -62,8 +62,8 @@ class ApproachNLP:
 
 
 def solve_ipopt(nlp: ApproachNLP) -> dict[str, Any]:
-    """The planner's solver call (``ApproachProblem._solve_once``) from ``nlp.w0``."""
-    solver = nlp.problem.solver
+    """The planner's solver call (``ApproachProblem._solve_once``, a cold start) from ``nlp.w0``."""
+    solver = nlp.problem.cold_solver
     sol, seconds = timed(lambda: solver(x0=nlp.w0, p=nlp.p, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg))
     st = solver.stats()
     w = np.asarray(sol["x"]).ravel()
