@@ -30,6 +30,7 @@ from planner.costs import manipulability_sym
 from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
 from planner.phases import constraint_backoff
 from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, initial_guesses
+from planner.phases.ipopt import ipopt_options, ipopt_solver
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m
 from planner.robot import fk_function
 from planner.scenario import Scenario
@@ -272,18 +273,8 @@ class ApproachProblem:
         self.ubw = np.concatenate([np.full(self.n_params, np.inf), [bx[1], bz[1], sc.phases.max_start_delay_s],
                                    np.tile(rob.q_max, n_tr), ubw_extra])
         self._nlp = {"x": ca.vertcat(w, *extra_w), "p": p, "f": cost, "g": ca.vertcat(*g_parts)}
-        self._options = {
-            "ipopt.hessian_approximation": "limited-memory",
-            "ipopt.max_iter": sc.solver.max_iter,
-            "ipopt.max_wall_time": sc.solver.max_wall_s,
-            "ipopt.tol": sc.solver.tol,
-            "ipopt.acceptable_tol": 1e-4,
-            "ipopt.constr_viol_tol": 1e-7,
-            "ipopt.print_level": 0,
-            "ipopt.sb": "yes",
-            "print_time": False,
-        }
-        self.solver = ca.nlpsol("approach", "ipopt", self._nlp, self._options)
+        self._options = ipopt_options(sc.solver, constr_viol_tol=1e-7)
+        self.solver = ipopt_solver("approach", self._nlp, self._options)
         self._cold_solver: ca.Function | None = None
         self.n_pairs = n_d
         self.n_dist = len(all_poses) * n_d
@@ -382,8 +373,8 @@ class ApproachProblem:
         table builds and query refines were measured. Built on first use.
         """
         if self._cold_solver is None:
-            self._cold_solver = ca.nlpsol("approach_cold", "ipopt", self._nlp,
-                                          self._options | {"ipopt.start_with_resto": "yes"})
+            self._cold_solver = ipopt_solver("approach_cold", self._nlp,
+                                            self._options | {"ipopt.start_with_resto": "yes"})
         return self._cold_solver
 
     def _solve_once(self, state: TargetState, w0: Array, lbw: Array | None = None,

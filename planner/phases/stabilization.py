@@ -33,6 +33,7 @@ from planner.collision_callback import SceneDistanceCallback, pose_vector
 from planner.freefloating import FreeFloatingModel, base_pose_rate_sym, momentum_map, quat_to_rotation_sym
 from planner.phases import constraint_backoff
 from planner.phases.feasibility_stop import FeasibilityStop
+from planner.phases.ipopt import ipopt_options, ipopt_solver
 from planner.robot import BodyInertia, RobotModel, fk_function
 from planner.scenario import Scenario
 from planner.scene import TARGET_BODY, build_scene
@@ -235,17 +236,7 @@ class StabilizationProblem:
             self.stop = FeasibilityStop("stabilization_feasible", self.n_params + self.n_extra, len(self.lbg),
                                         par.numel(), slice(0, 0), 0.0, STOP_CONSTRAINT_TOL)
             options["iteration_callback"] = self.stop
-        self.solver = ca.nlpsol("stabilization", "ipopt", nlp, options | {
-            "ipopt.hessian_approximation": "limited-memory",
-            "ipopt.max_iter": sc.solver.max_iter,
-            "ipopt.max_wall_time": sc.solver.max_wall_s,
-            "ipopt.tol": sc.solver.tol,
-            "ipopt.acceptable_tol": 1e-4,
-            "ipopt.constr_viol_tol": CONSTRAINT_TOL,
-            "ipopt.print_level": 0,
-            "ipopt.sb": "yes",
-            "print_time": False,
-        })
+        self.solver = ipopt_solver("stabilization", nlp, options | ipopt_options(sc.solver, CONSTRAINT_TOL))
         self.build_time_s = time.perf_counter() - t_build
 
     def initial_params(self, grasp: GraspState) -> Array:
