@@ -57,7 +57,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--refine-budget-s", type=float, default=100.0,
                     help="full mode: per-query budget (s) of the refine of an infeasible interpolated plan")
     ap.add_argument("--plan-runs", type=int, default=None,
-                    help="whole plans per scenario and variant (full default 1, since one plan takes ~5 min; "
+                    help="whole plans per scenario and variant (full default 1, since a cold plan takes 20 s to 4 min; "
                          "the issue asks >= 5: --plan-runs 5; quick default 0)")
     ap.add_argument("--plan-cap-s", type=float, default=300.0, help="IPOPT wall-time cap (s) per NLP of a plan")
     ap.add_argument("--plan-with-costs", action="store_true",
