@@ -25,15 +25,14 @@ _CASADI_OPENBLAS = "libcasadi-tp-openblas.so.0"
 
 
 @functools.cache
-def pin_ipopt_blas_threads() -> int:
-    """Set the OpenBLAS under CasADi's IPOPT to one thread; returns the thread count it reports after.
+def pin_ipopt_blas_threads() -> None:
+    """Set the OpenBLAS under CasADi's IPOPT to one thread (once per process: the library is loaded here).
 
     Loading the library by its path returns the handle the IPOPT plugin uses (same soname), whether or
     not the plugin is loaded yet, so this holds regardless of import order or environment variables.
     """
     lib = ctypes.CDLL(str(Path(ca.__file__).parent / _CASADI_OPENBLAS))
     lib.openblas_set_num_threads(1)
-    return int(lib.openblas_get_num_threads())
 
 
 def ipopt_options(solver: SolverSettings, constr_viol_tol: float) -> dict[str, Any]:
