@@ -194,16 +194,29 @@ class FreeFloatingModel:
         ``joint_state(t) -> (q, qd)`` evaluates the joint motion at any time (s); RK4 stages use the
         midpoint. Returns (len(times_s), 7).
         """
+        t = np.asarray(times_s, dtype=float)
+        mids = 0.5 * (t[:-1] + t[1:])
+        nodes = [joint_state(tk) for tk in t]
+        halves = [joint_state(tm) for tm in mids]
+        return self.integrate_base_sampled(t, np.array([a for a, _ in nodes]), np.array([b for _, b in nodes]),
+                                           np.array([a for a, _ in halves]).reshape(len(mids), -1),
+                                           np.array([b for _, b in halves]).reshape(len(mids), -1), x0, h_world)
+
+    def integrate_base_sampled(self, times_s: Array, q: Array, qd: Array, q_mid: Array, qd_mid: Array, x0: Array,
+                               h_world: Array | None = None) -> Array:
+        """:meth:`integrate_base` from joint samples: ``q``, ``qd`` (rad, rad/s) at ``times_s`` (n, n_joints),
+        ``q_mid``, ``qd_mid`` at the step midpoints (n − 1, n_joints). One CasADi call for all steps.
+        """
+        t = np.asarray(times_s, dtype=float)
         h = np.zeros(6) if h_world is None else np.asarray(h_world, dtype=float)
-        xs = np.empty((len(times_s), 7))
+        xs = np.empty((len(t), 7))
         xs[0] = x0
-        qa, qda = joint_state(times_s[0])
-        for k in range(len(times_s) - 1):
-            t0, t1 = times_s[k], times_s[k + 1]
-            qm, qdm = joint_state(0.5 * (t0 + t1))
-            qb, qdb = joint_state(t1)
-            xs[k + 1] = np.asarray(self.rk4_step(xs[k], qa, qda, qm, qdm, qb, qdb, h, t1 - t0)).ravel()
-            qa, qda = qb, qdb
+        steps = len(t) - 1
+        if steps == 0:
+            return xs
+        run = self.rk4_step.mapaccum("rk4_base_steps", steps)
+        xs[1:] = np.asarray(run(x0, q[:-1].T, qd[:-1].T, q_mid.T, qd_mid.T, q[1:].T, qd[1:].T,
+                                np.tile(h[:, None], (1, steps)), np.diff(t)[None, :])).T
         return xs
 
 

@@ -224,12 +224,8 @@ def _spline_samples(spline: UniformCubicBSpline, V: Array, ff: FreeFloatingModel
     t = np.linspace(0.0, T, n + 1)
     q = spline.evaluate(V, t)
     qd = spline.evaluate(V, t, 1)
-
-    def joint_state(tt: float) -> tuple[Array, Array]:
-        tt = min(max(tt, 0.0), T)
-        return spline.evaluate(V, [tt])[0], spline.evaluate(V, [tt], 1)[0]
-
-    x = ff.integrate_base(t, joint_state, x0, h_world)
+    mids = np.minimum(0.5 * (t[:-1] + t[1:]), T)
+    x = ff.integrate_base_sampled(t, q, qd, spline.evaluate(V, mids), spline.evaluate(V, mids, 1), x0, h_world)
     return t, q, qd, x
 
 

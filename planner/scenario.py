@@ -297,6 +297,9 @@ class StabilizationSettings:
     # "zero" = the paper's Eq. 24 (s̈(0) = 0; the wrench steps at the grasp by what the IK's acceleration
     # carried)
     start_acceleration: str = "continuous"
+    # a cold solve first solves the same NLP with this many uniform via points (and RK4 steps), then starts
+    # the full NLP from that answer; 0 solves the full NLP directly (planner.phases.stabilization)
+    coarse_via_points: int = 20
 
 
 @dataclass(frozen=True)
@@ -420,7 +423,10 @@ def load_scenario(path: str | Path) -> Scenario:
     b = t.table("stabilization", default={})
     stab = StabilizationSettings(b.number("n_vertices", 10, integer=True), b.number("via_points", 20, integer=True),
                                  b.number("rk4_steps", 90, integer=True),
-                                 b.string("start_acceleration", "continuous", choices=("continuous", "zero")))
+                                 b.string("start_acceleration", "continuous", choices=("continuous", "zero")),
+                                 b.number("coarse_via_points", 20, integer=True, nonnegative=True))
+    if 0 < stab.coarse_via_points < 2:
+        raise b.error("coarse_via_points", f"must be 0 (off) or >= 2, got {stab.coarse_via_points}")
     for key in ("n_vertices", "via_points", "rk4_steps"):
         minimum = 8 if key == "n_vertices" else 2
         if getattr(stab, key) < minimum:

@@ -41,6 +41,10 @@ REACH_TOLERANCE = 1e-3  # pose residual (m, rad) below which a pose counts as re
 REGULARISATION = 0.02  # weight pulling the IK toward θ_in and the base-offset guess (1/rad, 1/m)
 # the polish keeps a little of it: with none, the redundant arm and the base drift to their bounds
 POLISH_REGULARISATION = 2e-3
+# a start whose regularised solve leaves a larger pose residual (m, rad) is not polished: measured over the
+# scans of 18 target states per scenario (3897 starts), every start the polish took below REACH_TOLERANCE
+# had left at most 0.015 here, and skipping the hopeless polishes saves 16 % of the scan's evaluations
+POLISH_WORTHWHILE_ERROR = 0.1
 
 
 @dataclass(frozen=True)
@@ -147,11 +151,16 @@ class _PoseIK:
             return least_squares(residual, np.clip(x0, lo, hi), jac=jacobian, bounds=(lo, hi), xtol=1e-10,
                                  ftol=1e-10, max_nfev=200).x
 
+        def pose_error(x: Array) -> float:
+            return float(np.linalg.norm(np.asarray(self.fn(x, p_goal, R_goal, S, 0.0, dp, dR, *fixed)[0]).ravel()[:12]))
+
         for x0 in starts:
             # regularised solve (stays near θ_in), then a polish that removes most of the regularisation's bias
-            x = solve_from(solve_from(x0, REGULARISATION), POLISH_REGULARISATION)
-            pose_error = np.asarray(self.fn(x, p_goal, R_goal, S, 0.0, dp, dR, *fixed)[0]).ravel()[:12]
-            if np.linalg.norm(pose_error) < REACH_TOLERANCE:
+            x = solve_from(x0, REGULARISATION)
+            if pose_error(x) > POLISH_WORTHWHILE_ERROR:
+                continue
+            x = solve_from(x, POLISH_REGULARISATION)
+            if pose_error(x) < REACH_TOLERANCE:
                 if base_fixed is not None:
                     x = np.concatenate([x[:-2], base_fixed])
                 return x

@@ -1,0 +1,126 @@
+"""The stabilization NLP (phase 3): its constraint Jacobian, and the cold solve by way of the coarse NLP.
+
+The grasp state is scenario II's grasp taken from the bundled plan (tests/data/plan_II.json.gz): joint
+state and base pose at the tracking end, grasp frame from the export, and the compound momentum formed
+the way the planner forms it (the chaser's own base twist, zero momentum before the grasp).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lut.plan_file import load_plan
+from planner.freefloating import FreeFloatingModel
+from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution, compound_robot
+from planner.rotation import quat_to_matrix
+from planner.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def scenario_II():
+    return load_scenario(ROOT / "configs" / "scenarios" / "scenario_II.toml")
+
+
+@pytest.fixture(scope="module")
+def grasp(scenario_II) -> GraspState:
+    doc = load_plan(ROOT / "tests" / "data" / "plan_II.json.gz")
+    s = doc["samples"]
+    i = int(np.argmin(np.abs(np.asarray(s["t"]) - doc["phases"]["stabilization"][0])))
+    q, qd = np.asarray(s["q"][i]), np.asarray(s["qd"][i])
+    x_base = np.concatenate([s["base_position"][i], s["base_wxyz"][i]])
+    g = doc["target"]["grasp_in_body"]
+    T_body_grasp = np.eye(4)
+    T_body_grasp[:3, :3] = quat_to_matrix(np.asarray(g["wxyz"]))
+    T_body_grasp[:3, 3] = g["position"]
+    T_ee_target = np.linalg.inv(T_body_grasp)
+    nu = np.asarray(FreeFloatingModel(scenario_II.robot).base_twist(q, qd, np.zeros(6))).ravel()
+    A_b, A_m, _ = (np.asarray(a) for a in FreeFloatingModel(compound_robot(scenario_II, T_ee_target)).momentum(q))
+    h_base = A_b @ nu + A_m @ qd
+    R = quat_to_matrix(x_base[3:])
+    return GraspState(q, qd, np.zeros(7), x_base, np.concatenate([R @ h_base[:3], R @ h_base[3:]]), T_ee_target)
+
+
+@pytest.fixture(scope="module")
+def problem(scenario_II, grasp) -> StabilizationProblem:
+    return StabilizationProblem(scenario_II, grasp.T_ee_target)
+
+
+def _parameters(grasp: GraspState) -> np.ndarray:
+    return np.concatenate([grasp.q, grasp.qd, grasp.qdd, grasp.x_base, grasp.h_world])
+
+
+def test_constraint_jacobian_matches_central_differences(problem, grasp):
+    """The NLP's Jacobian (CasADi AD, the grasp wrench by its own Jacobian; see JACOBIAN_FIRST_PENALTY)
+    equals finite differences of the constraints on the joint-box and grasp-wrench rows.
+
+    Fourth-order central differences, step 1e-5 in the spline parameters: the wrench is strongly curved
+    in them (second-order differences at this step are off by 1e-5 of an entry, their h² truncation),
+    while the fourth-order truncation (~h⁴) and roundoff (~1e-16·|g|/h) both stay below 1e-9 relative.
+    The distance rows are left to tests/test_collision_callback.py (FCL's witness points switch faces).
+    """
+    par = _parameters(grasp)
+    P = problem.initial_params(grasp)
+    g_fun = problem.solver.get_function("nlp_g")
+    J = np.asarray(problem.solver.get_function("nlp_jac_g")(P, par)[1])
+    rows = np.r_[0:problem.n_box, problem.n_box + problem.n_dist:len(problem.lbg)]
+    step = 1e-5
+
+    def g(x: np.ndarray) -> np.ndarray:
+        return np.asarray(g_fun(x, par)).ravel()[rows]
+
+    J_fd = np.empty((len(rows), len(P)))
+    for j in range(len(P)):
+        e = np.zeros(len(P))
+        e[j] = step
+        J_fd[:, j] = (-g(P + 2 * e) + 8 * g(P + e) - 8 * g(P - e) + g(P - 2 * e)) / (12 * step)
+    scale = np.maximum(np.abs(J_fd).max(axis=1, keepdims=True), 1e-3)
+    np.testing.assert_array_less(np.abs(J[rows] - J_fd) / scale, 1e-7)
+
+
+def test_coarse_problem_is_the_same_nlp_on_fewer_via_points(problem, scenario_II):
+    coarse = problem.coarse_problem()
+    assert coarse is problem.coarse_problem()  # built once
+    assert coarse.coarse_via_points == 0  # no coarse problem of its own
+    assert coarse.n_params == problem.n_params
+    assert scenario_II.stabilization.coarse_via_points < coarse.k < problem.k  # knots are always via points
+
+
+def test_cold_solve_falls_back_to_the_full_nlp_when_the_warm_solve_fails(problem, grasp, monkeypatch):
+    """Coarse → full (from the coarse answer) → full from the cold guess, when the second fails; the
+    answer is the last solve's, with times and iterations summed over all three."""
+    calls = []
+    template = StabilizationSolution(np.zeros(problem.n_params), True, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def fake_solve(self, g, warm_params):
+        calls.append((self is problem, None if warm_params is None else np.asarray(warm_params).copy()))
+        n = len(calls)
+        sol = replace(template, params=np.full(problem.n_params, float(n)), iterations=10 * n,
+                      solve_time_s=float(n), success=n != 2, status=f"solve {n}")
+        return sol
+
+    monkeypatch.setattr(StabilizationProblem, "_solve", fake_solve)
+    sol = problem.solve(grasp)
+    assert [is_full for is_full, _ in calls] == [False, True, True]
+    assert calls[0][1] is None and calls[2][1] is None
+    np.testing.assert_array_equal(calls[1][1], np.full(problem.n_params, 1.0))  # started from the coarse answer
+    assert sol.status == "solve 3" and sol.success
+    assert sol.iterations == 60 and sol.solve_time_s == 6.0
+    assert sol.build_time_s == problem.build_time_s + problem.coarse_problem().build_time_s
+
+
+def test_warm_solve_skips_the_coarse_problem(problem, grasp, monkeypatch):
+    calls = []
+
+    def fake_solve(self, g, warm_params):
+        calls.append(self is problem)
+        return "answer"
+
+    monkeypatch.setattr(StabilizationProblem, "_solve", fake_solve)
+    assert problem.solve(grasp, problem.initial_params(grasp)) == "answer"
+    assert calls == [True]
