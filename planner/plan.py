@@ -20,9 +20,15 @@ from planner.bspline import UniformCubicBSpline, approach_vertices, stabilizatio
 from planner.freefloating import FreeFloatingModel
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import target_motion
-from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
+from planner.phases.stabilization import (
+    GraspState,
+    StabilizationProblem,
+    StabilizationSolution,
+    compound_robot,
+    grasp_momentum_world,
+)
 from planner.phases.tracking import TrackingController, TrackingResult
-from planner.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.rotation import axis_angle_to_matrix
 from planner.scenario import Scenario
 from planner.target import TargetMotion, TargetState
 
@@ -193,16 +199,8 @@ class Planner:
         if axis is not None:
             T_bg[:3, :3] = T_bg[:3, :3] @ axis_angle_to_matrix(axis, tr.free_axis_angle_rad)
         T_ee_target = np.linalg.inv(T_bg)  # the ee frame coincides with the grasp frame at the grasp
-        from planner.phases.stabilization import compound_robot
-
-        compound = compound_robot(sc, T_ee_target)
-        ff_c = FreeFloatingModel(compound)
         q, qd, x = tr.q[-1], tr.qd[-1], tr.x_base[-1]
-        R = quat_to_matrix(x[3:])
-        nu = np.asarray(self.ff.base_twist(q, qd, np.zeros(6))).ravel()  # the chaser's own base twist
-        A_b, A_m, _ = (np.asarray(a) for a in ff_c.momentum(q))
-        h_base = A_b @ nu + A_m @ qd
-        h_world = np.concatenate([R @ h_base[:3], R @ h_base[3:]])
+        h_world = grasp_momentum_world(self.ff, FreeFloatingModel(compound_robot(sc, T_ee_target)), q, qd, x)
         qdd = tr.qdd_end if sc.stabilization.start_acceleration == "continuous" else np.zeros_like(qd)
         return GraspState(q, qd, qdd, x, h_world, T_ee_target), T_bg
 
@@ -226,7 +224,7 @@ def _spline_samples(spline: UniformCubicBSpline, V: Array, ff: FreeFloatingModel
     t = np.linspace(0.0, T, n + 1)
     q = spline.evaluate(V, t)
     qd = spline.evaluate(V, t, 1)
-    mids = np.minimum(0.5 * (t[:-1] + t[1:]), T)
+    mids = 0.5 * (t[:-1] + t[1:])
     x = ff.integrate_base_sampled(t, q, qd, spline.evaluate(V, mids), spline.evaluate(V, mids, 1), x0, h_world)
     return t, q, qd, x
 

@@ -2,7 +2,7 @@
 
 The grasp state is scenario II's grasp taken from the bundled plan (tests/data/plan_II.json.gz): joint
 state and base pose at the tracking end, grasp frame from the export, and the compound momentum formed
-the way the planner forms it (the chaser's own base twist, zero momentum before the grasp).
+by the planner's own ``grasp_momentum_world``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,13 @@ import pytest
 
 from lut.plan_file import load_plan
 from planner.freefloating import FreeFloatingModel
-from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution, compound_robot
+from planner.phases.stabilization import (
+    GraspState,
+    StabilizationProblem,
+    StabilizationSolution,
+    compound_robot,
+    grasp_momentum_world,
+)
 from planner.rotation import quat_to_matrix
 from planner.scenario import load_scenario
 
@@ -39,11 +45,9 @@ def grasp(scenario_II) -> GraspState:
     T_body_grasp[:3, :3] = quat_to_matrix(np.asarray(g["wxyz"]))
     T_body_grasp[:3, 3] = g["position"]
     T_ee_target = np.linalg.inv(T_body_grasp)
-    nu = np.asarray(FreeFloatingModel(scenario_II.robot).base_twist(q, qd, np.zeros(6))).ravel()
-    A_b, A_m, _ = (np.asarray(a) for a in FreeFloatingModel(compound_robot(scenario_II, T_ee_target)).momentum(q))
-    h_base = A_b @ nu + A_m @ qd
-    R = quat_to_matrix(x_base[3:])
-    return GraspState(q, qd, np.zeros(7), x_base, np.concatenate([R @ h_base[:3], R @ h_base[3:]]), T_ee_target)
+    h_world = grasp_momentum_world(FreeFloatingModel(scenario_II.robot),
+                                   FreeFloatingModel(compound_robot(scenario_II, T_ee_target)), q, qd, x_base)
+    return GraspState(q, qd, np.zeros(7), x_base, h_world, T_ee_target)
 
 
 @pytest.fixture(scope="module")

@@ -273,7 +273,7 @@ class ApproachProblem:
         self.ubw = np.concatenate([np.full(self.n_params, np.inf), [bx[1], bz[1], sc.phases.max_start_delay_s],
                                    np.tile(rob.q_max, n_tr), ubw_extra])
         self._nlp = {"x": ca.vertcat(w, *extra_w), "p": p, "f": cost, "g": ca.vertcat(*g_parts)}
-        self._options = ipopt_options(sc.solver, constr_viol_tol=1e-7)
+        self._options = ipopt_options(sc.solver)
         self.solver = ipopt_solver("approach", self._nlp, self._options)
         self._cold_solver: ca.Function | None = None
         self.n_pairs = n_d

@@ -20,6 +20,8 @@ import casadi as ca
 
 from planner.scenario import SolverSettings
 
+CONSTRAINT_TOL = 1e-7  # IPOPT's constr_viol_tol of every phase NLP (rad, rad/s, m, N·m, N)
+
 # the OpenBLAS CasADi's IPOPT plugin links (casadi/libcasadi-tp-openblas.so.0)
 _CASADI_OPENBLAS = "libcasadi-tp-openblas.so.0"
 
@@ -35,7 +37,7 @@ def pin_ipopt_blas_threads() -> None:
     lib.openblas_set_num_threads(1)
 
 
-def ipopt_options(solver: SolverSettings, constr_viol_tol: float) -> dict[str, Any]:
+def ipopt_options(solver: SolverSettings, constr_viol_tol: float = CONSTRAINT_TOL) -> dict[str, Any]:
     """The options every phase NLP shares: limited-memory Hessian, the scenario's iteration and wall-time
     limits and tolerance, ``acceptable_tol`` 1e-4, silent.
 

@@ -40,6 +40,7 @@ from planner.phases import constraint_backoff
 from planner.phases.feasibility_stop import FeasibilityStop
 from planner.phases.ipopt import ipopt_options, ipopt_solver
 from planner.robot import BodyInertia, RobotModel, fk_function
+from planner.rotation import quat_to_matrix
 from planner.scenario import Scenario
 from planner.scene import TARGET_BODY, build_scene
 
@@ -83,6 +84,21 @@ def compound_robot(scenario: Scenario, T_ee_target: Array) -> RobotModel:
     t = scenario.target
     payload = BodyInertia(t.mass_kg, np.zeros(3), t.inertia_body_kg_m2)
     return scenario.robot.with_payload(payload, T_ee_target)
+
+
+def grasp_momentum_world(chaser: FreeFloatingModel, compound: FreeFloatingModel, q: Array, qd: Array,
+                         x_base: Array) -> Array:
+    """Momentum ``[P, L_G]`` (world; N·s, N·m·s) of the compound at the grasp instant.
+
+    Before the grasp the chaser's own momentum is zero, so its base moves with the twist that momentum
+    gives; the target moves rigidly with the gripper (matched velocity), so the compound with that base
+    twist and the joint rates ``qd`` carries the chaser's and the target's momentum together.
+    """
+    nu = np.asarray(chaser.base_twist(q, qd, np.zeros(6))).ravel()
+    A_b, A_m, _ = (np.asarray(a) for a in compound.momentum(q))
+    h_base = A_b @ nu + A_m @ qd
+    R = quat_to_matrix(x_base[3:])
+    return np.concatenate([R @ h_base[:3], R @ h_base[3:]])
 
 
 def wrench_function(scenario: Scenario, compound: RobotModel, T_ee_target: Array) -> ca.Function:
@@ -141,7 +157,6 @@ def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float
     return np.unique(np.round(np.concatenate([uniform, knots]), 9))
 
 
-CONSTRAINT_TOL = 1e-7  # IPOPT's constr_viol_tol (rad, rad/s, m, N·m, N)
 # The feasibility stop's tolerance on the constraint values: IPOPT's iterates sit on the boundary of
 # active constraints only to ~1e-6 before mu is small; the back-offs (planner.phases.constraint_backoff)
 # are 1e4 times larger, so this changes nothing dense verification can see.
@@ -252,7 +267,7 @@ class StabilizationProblem:
             self.stop = FeasibilityStop("stabilization_feasible", self.n_params + self.n_extra, len(self.lbg),
                                         par.numel(), slice(0, 0), 0.0, STOP_CONSTRAINT_TOL)
             options["iteration_callback"] = self.stop
-        self.solver = ipopt_solver("stabilization", nlp, options | ipopt_options(sc.solver, CONSTRAINT_TOL))
+        self.solver = ipopt_solver("stabilization", nlp, options | ipopt_options(sc.solver))
         self.build_time_s = time.perf_counter() - t_build
 
     def initial_params(self, grasp: GraspState) -> Array:
