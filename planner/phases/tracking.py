@@ -110,13 +110,21 @@ class TrackingController:
         kn = sc.tracking.nullspace_gain
         peak_demand = 0.0
 
+        # the target's grasp frame at every time the integration below asks for, in one vectorised call
+        # (it does not depend on the chaser; the per-call overhead was a third of the phase's time)
+        grasp_at = _grasp_poses_at(motion, t_start_s, _query_times(steps, dt))
+        desired_at: dict[float, tuple[Array, Array]] = {}
+
         def desired(t: float) -> tuple[Array, Array]:
-            R_g, p_g = (a[0] for a in motion.grasp_pose(t_start_s + t))
+            if t in desired_at:
+                return desired_at[t]
+            R_g, p_g = grasp_at[t] if t in grasp_at else (a[0] for a in motion.grasp_pose(t_start_s + t))
             R_G = R_g @ R_free
             d = backoff_m(d0, t, T)
             s = blend(t, T)
             p = (1 - s) * p_ee0 + s * (p_g - d * R_G[:, 2])
             R = R_ee0 @ pin.exp3(s * pin.log3(R_ee0.T @ R_G))
+            desired_at[t] = R, p
             return R, p
 
         def desired_twist(t: float) -> Array:
@@ -196,6 +204,23 @@ class TrackingController:
             relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
             peak_rate_demand=peak_demand,
         )
+
+
+def _query_times(steps: int, dt: float) -> list[float]:
+    """The phase times (s) :meth:`TrackingController.simulate` evaluates the desired pose at: the RK4
+    stage times, and each one's central-difference neighbours, formed by the same float expressions."""
+    stages = [0.0]
+    for i in range(steps):
+        t = i * dt
+        stages += [t + dt / 2, t + dt]
+    return [*stages, *(t + FD_STEP_S for t in stages), *(max(t - FD_STEP_S, 0.0) for t in stages)]
+
+
+def _grasp_poses_at(motion: TargetMotion, t_start_s: float, times: list[float]) -> dict[float, tuple[Array, Array]]:
+    """``R_world_grasp``, ``p_world_grasp`` at ``t_start_s + t`` for each phase time ``t``, keyed by ``t``."""
+    keys = list(dict.fromkeys(times))
+    R, p = motion.grasp_pose(t_start_s + np.asarray(keys))
+    return {t: (R[i], p[i]) for i, t in enumerate(keys)}
 
 
 def _base_rate(ff: FreeFloatingModel, q: Array, qd: Array, x: Array) -> Array:
