@@ -89,17 +89,16 @@ def test_compiled_levenberg_marquardt_matches_scipy_on_the_scan_ik():
     for — the pose error, compared against REACH_TOLERANCE (1e-3) — to agree with scipy's to 1e-5."""
     from scipy.optimize import least_squares
 
-    from planner.phases.approach_guess import POLISH_REGULARISATION, REGULARISATION
+    from planner.phases.approach_guess import POLISH_REGULARISATION, REGULARISATION, pack_ik_parameters
 
     sc = load_scenario(SCENARIO_I)
     ik = _PoseIK(sc)
     fk = fk_function(sc.robot)
     rng = np.random.default_rng(11)
-    tail = np.concatenate([np.zeros(3), np.eye(3).ravel(), np.zeros(2), [0.0]])  # no drift, base free
 
     def both(x0: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray, tuple]:
-        args = (p_goal, R_goal, np.eye(3), weight, np.zeros(3), np.eye(3), np.zeros(2), 0.0)
-        x_lm, _ = ik.lm(x0, np.concatenate([p_goal, R_goal.ravel(order="F"), np.eye(3).ravel(), [weight], tail]))
+        args = (p_goal, R_goal, np.eye(3), weight, np.zeros(3), np.eye(3), np.zeros(2), 0.0)  # no drift, base free
+        x_lm, _ = ik.lm(x0, pack_ik_parameters(*args))
         ref = least_squares(lambda x: np.asarray(ik.fn(x, *args)[0]).ravel(), x0,
                             jac=lambda x: np.asarray(ik.fn(x, *args)[1]), bounds=(ik.lo, ik.hi),
                             xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from planner.bspline import UniformCubicBSpline, fit_approach_params
 from planner.costs import manipulability
@@ -136,9 +136,16 @@ def _levenberg_marquardt_function(residual: ca.Function, lo: Array, hi: Array, i
     return ca.Function("pose_ik_lm", [x0, p], [x_end, ca.norm_2(r_end[:12])])
 
 
-# per solve. Measured on the default states of scenarios I and II: with 100 steps the scan reaches the
-# same meeting times and tracking nodes as scipy's trf did (xtol 1e-10), its guesses within 3e-5 rad;
-# without the projected-Newton masking, 100 steps lost three reachable meeting times of scenario I
+def pack_ik_parameters(*args: ArrayLike) -> Array:
+    """The parameters of :func:`_ik_residual_function` (after x), in its order, as the one vector ``p`` of
+    :func:`_levenberg_marquardt_function`: each flattened column-major, as CasADi stores a matrix."""
+    return np.concatenate([np.asarray(a, dtype=float).ravel(order="F") for a in args])
+
+
+# Levenberg-Marquardt steps per solve. Measured on the default states of scenarios I and II: with 100
+# steps the scan reaches the same meeting times and tracking nodes as scipy's trf did (xtol 1e-10), its
+# guesses within 3e-5 rad; without the projected-Newton masking, 100 steps lost three reachable meeting
+# times of scenario I
 LM_ITERATIONS = 100
 
 
@@ -181,11 +188,9 @@ class _PoseIK:
         fixed_base, fix = (np.zeros(2), 0.0) if base_fixed is None else (np.asarray(base_fixed, dtype=float), 1.0)
         if self.out_of_reach(p_goal, base_fixed, (dp, dR)):
             return None
-        packed = [np.asarray(a, dtype=float).ravel(order="F") for a in (p_goal, R_goal, S)]
-        tail = [np.asarray(a, dtype=float).ravel(order="F") for a in (dp, dR, fixed_base, [fix])]
 
         def solve_from(x0: Array, weight: float) -> tuple[Array, float]:
-            x, error = self.lm(x0, np.concatenate([*packed, [weight], *tail]))
+            x, error = self.lm(x0, pack_ik_parameters(p_goal, R_goal, S, weight, dp, dR, fixed_base, fix))
             return np.asarray(x).ravel(), float(error)
 
         for x0 in starts:

@@ -112,7 +112,8 @@ class TrackingController:
 
         # the target's grasp frame at every time the integration below asks for, in one vectorised call
         # (it does not depend on the chaser; the per-call overhead was a third of the phase's time)
-        grasp_at = _grasp_poses_at(motion, t_start_s, _query_times(steps, dt))
+        stages = _stage_times(steps, dt)
+        grasp_at = _grasp_poses_at(motion, t_start_s, [*stages, *(u for t in stages for u in _difference_times(t))])
         desired_at: dict[float, tuple[Array, Array]] = {}
 
         def desired(t: float) -> tuple[Array, Array]:
@@ -128,8 +129,9 @@ class TrackingController:
             return R, p
 
         def desired_twist(t: float) -> Array:
-            R_p, p_p = desired(t + FD_STEP_S)
-            R_m, p_m = desired(max(t - FD_STEP_S, 0.0))
+            t_plus, t_minus = _difference_times(t)
+            R_p, p_p = desired(t_plus)
+            R_m, p_m = desired(t_minus)
             h = FD_STEP_S + min(t, FD_STEP_S)
             return np.concatenate([(p_p - p_m) / h, pin.log3(R_p @ R_m.T) / h])
 
@@ -174,15 +176,15 @@ class TrackingController:
         k1q, k1x = rates(0.0, q0, x_base0)
         qds[0] = k1q
         for i in range(steps):
-            t = i * dt
-            k2q, k2x = rates(t + dt / 2, qs[i] + dt / 2 * k1q, xs[i] + dt / 2 * k1x)
-            k3q, k3x = rates(t + dt / 2, qs[i] + dt / 2 * k2q, xs[i] + dt / 2 * k2x)
-            k4q, k4x = rates(t + dt, qs[i] + dt * k3q, xs[i] + dt * k3x)
+            t_mid, t_next = stages[2 * i + 1], stages[2 * i + 2]
+            k2q, k2x = rates(t_mid, qs[i] + dt / 2 * k1q, xs[i] + dt / 2 * k1x)
+            k3q, k3x = rates(t_mid, qs[i] + dt / 2 * k2q, xs[i] + dt / 2 * k2x)
+            k4q, k4x = rates(t_next, qs[i] + dt * k3q, xs[i] + dt * k3x)
             qs[i + 1] = qs[i] + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
             xn = xs[i] + dt / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
             xn[3:] /= np.linalg.norm(xn[3:])
             xs[i + 1] = xn
-            k1q, k1x = rates(t + dt, qs[i + 1], xs[i + 1])
+            k1q, k1x = rates(t_next, qs[i + 1], xs[i + 1])
             qds[i + 1] = k1q
         # joint acceleration at the grasp instant: derivative of q̇ along the closed-loop flow
         eps = 1e-4
@@ -206,14 +208,19 @@ class TrackingController:
         )
 
 
-def _query_times(steps: int, dt: float) -> list[float]:
-    """The phase times (s) :meth:`TrackingController.simulate` evaluates the desired pose at: the RK4
-    stage times, and each one's central-difference neighbours, formed by the same float expressions."""
+def _stage_times(steps: int, dt: float) -> list[float]:
+    """Phase times (s) of the RK4 integration's stages: ``[0, dt/2, dt, dt + dt/2, 2 dt, …]``, each step's
+    midpoint and end formed from ``i·dt`` (the integration and the batched target poses share this list)."""
     stages = [0.0]
     for i in range(steps):
         t = i * dt
         stages += [t + dt / 2, t + dt]
-    return [*stages, *(t + FD_STEP_S for t in stages), *(max(t - FD_STEP_S, 0.0) for t in stages)]
+    return stages
+
+
+def _difference_times(t: float) -> tuple[float, float]:
+    """The two phase times (s) of the desired twist's central difference at ``t`` (one-sided at 0)."""
+    return t + FD_STEP_S, max(t - FD_STEP_S, 0.0)
 
 
 def _grasp_poses_at(motion: TargetMotion, t_start_s: float, times: list[float]) -> dict[float, tuple[Array, Array]]:
