@@ -5,7 +5,9 @@ stabilization NLP → dense re-simulation of the stabilization. The approach NLP
 tracking constraints (configurations at the tracking nodes); the IK caps its joint rates (a short lag the
 pose feedback recovers), but if it asked for more than :data:`RATE_DEMAND_TOLERATED` × a limit, f, the
 approach is re-solved with its tracking-rate bounds tightened by 1/f (warm-started), up to
-:data:`TIGHTENING_ROUNDS` times. Times are seconds since the observation.
+:data:`TIGHTENING_ROUNDS` times. Whether the stabilization is feasible depends strongly on the grasp (its
+configuration and joint rates), so a cold plan whose stabilization fails tries the grasps of the approach's
+next scanned meeting times (see :meth:`Planner.plan`). Times are seconds since the observation.
 """
 
 from __future__ import annotations
@@ -40,6 +42,14 @@ TIGHTENING_ROUNDS = 2
 # re-solved instead. Measured: scenarios I and II asked for 1.14 and 1.10 and, capped, still met the grasp
 # to 2-3e-5 m, rad, m/s and rad/s — 20-50 times inside the grasp thresholds verify applies
 RATE_DEMAND_TOLERATED = 1.25
+# A cold plan whose stabilization fails tries the grasps reached from the approach's next scanned guesses,
+# up to this many guesses in all (the approach's own default number of starts).
+GRASP_GUESSES = 3
+# IPOPT iterations (coarse + full NLP) a stabilization gets while another grasp remains to be tried. Measured
+# on nine scenario II states: successful cold solves took 5-74 iterations (one took 319), failing ones
+# 324-712, 90-290 s; from another meeting time the (0°, 3°/s) state that fails from its first grasp is
+# feasible in 5 iterations.
+STABILIZATION_BUDGET = 120
 
 
 @dataclass(frozen=True)
@@ -98,12 +108,60 @@ class Planner:
         return self._stabilization[key]
 
     def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:
-        """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs."""
+        """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
+
+        A cold plan whose stabilization fails from the first grasp tries the grasps the approach reaches from
+        its next scanned guesses (other meeting times), giving each stabilization
+        :data:`STABILIZATION_BUDGET` iterations; when none succeeds, the first grasp's stabilization is solved
+        again without that budget, so the plan is never worse than from the first grasp alone. A warm plan keeps its
+        grasp (a table's neighbours stay in one family of solutions).
+        """
         t_start = time.perf_counter()
         warm = warm_start.as_warm_start() if isinstance(warm_start, GraspPlan) else warm_start
-        app = self.approach.solve(state, warm.approach if warm is not None else None)
-        motion = self._motion(state)
         notes: list[str] = []
+        motion = self._motion(state)
+        app = self.approach.solve(state, warm.approach if warm is not None else None)
+        candidate = first = self._grasp_candidate(state, app, motion, notes)
+        approach_s, stab_s = candidate.app.solve_time_s, 0.0  # NLP time, tracking-rate re-solves included
+        warm_stab = warm.stabilization_params if warm is not None else None
+        while True:
+            more = warm is None and candidate.app.success and 0 <= candidate.app.start_guess < GRASP_GUESSES - 1
+            # budgeted while another grasp remains, or the first grasp remains to fall back to
+            budget = STABILIZATION_BUDGET if more or candidate is not first else None
+            t_stab = time.perf_counter()
+            stab = candidate.stabilize(warm_stab, budget)
+            stab_s += time.perf_counter() - t_stab
+            if stab.success or not more:
+                break
+            notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s failed within "
+                         f"{STABILIZATION_BUDGET} iterations ({stab.status}); trying the approach's next guess")
+            nxt = self.approach.solve(state, None, max_starts=GRASP_GUESSES,
+                                      skip_guesses=candidate.app.start_guess + 1)
+            if not nxt.success:
+                approach_s += nxt.solve_time_s
+                notes.append(f"the approach from its next guesses failed ({nxt.status})")
+                candidate = None
+                break
+            candidate = self._grasp_candidate(state, nxt, motion, notes)
+            approach_s += candidate.app.solve_time_s
+        if candidate is None or not stab.success and candidate is not first:
+            notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
+                         "again without it")
+            candidate = first
+            t_stab = time.perf_counter()
+            stab = candidate.stabilize(warm_stab, None)
+            stab_s += time.perf_counter() - t_stab
+        timings = {"approach_s": approach_s, "stabilization_s": stab_s}
+        c = candidate
+        plan = self._assemble(state, c.app, c.approach_samples, c.tracking, c.grasp, c.T_body_grasp_used,
+                              c.problem, stab, timings, notes)
+        plan.timings_s["total_s"] = time.perf_counter() - t_start
+        return plan
+
+    def _grasp_candidate(self, state: TargetState, app: ApproachSolution, motion: TargetMotion,
+                         notes: list[str]) -> GraspCandidate:
+        """Approach → tracking (re-solving the approach with tightened tracking rates if the IK asked for
+        too much) → the compound's state at the grasp and its stabilization problem."""
         for round_ in range(TIGHTENING_ROUNDS + 1):
             approach_samples, tr = self._approach_and_tracking(app, motion)
             ratio = tr.peak_rate_demand
@@ -120,15 +178,7 @@ class Planner:
                 break
             app = replace_timing(retry, app)
         grasp, T_body_grasp_used = self._grasp_state(tr, motion)
-        # wall time of the phase: building its NLPs (skipped when this Planner already has them) and solving
-        t_stab = time.perf_counter()
-        stab_problem = self.stabilization_problem(grasp.T_ee_target, tr.free_axis_angle_rad)
-        stab = stab_problem.solve(grasp, warm.stabilization_params if warm is not None else None)
-        timings = {"approach_s": app.solve_time_s, "stabilization_s": time.perf_counter() - t_stab}
-        plan = self._assemble(state, app, approach_samples, tr, grasp, T_body_grasp_used, stab_problem, stab,
-                              timings, notes)
-        plan.timings_s["total_s"] = time.perf_counter() - t_start
-        return plan
+        return GraspCandidate(self, app, approach_samples, tr, grasp, T_body_grasp_used)
 
     def simulate(self, state: TargetState, warm: WarmStart) -> GraspPlan:
         """The plan that given parameters produce for ``state``, without solving (table queries).
@@ -211,9 +261,37 @@ class Planner:
         return _spline_samples(problem.spline, V, ff_c, grasp.x_base, grasp.h_world)
 
 
+@dataclass
+class GraspCandidate:
+    """One grasp the approach reached: its approach, tracking and grasp state, ready to stabilize."""
+
+    planner: Planner
+    app: ApproachSolution
+    approach_samples: tuple
+    tracking: TrackingResult
+    grasp: GraspState
+    T_body_grasp_used: Array
+
+    @property
+    def grasp_time_s(self) -> float:
+        """Grasp instant (s since the observation)."""
+        ph = self.planner.scenario.phases
+        return self.app.start_delay_s + ph.approach_s + ph.tracking_s
+
+    @property
+    def problem(self) -> StabilizationProblem:
+        """The stabilization NLP of this grasp's geometry (built on first use, kept by the planner)."""
+        return self.planner.stabilization_problem(self.grasp.T_ee_target, self.tracking.free_axis_angle_rad)
+
+    def stabilize(self, warm_params: Array | None, max_iterations: int | None) -> StabilizationSolution:
+        return self.problem.solve(self.grasp, warm_params, max_iterations)
+
+
 def replace_timing(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:
-    """``new``, with solve time and iterations accumulated over both solves."""
-    return replace(new, solve_time_s=new.solve_time_s + old.solve_time_s, iterations=new.iterations + old.iterations)
+    """``new``, with solve time and iterations accumulated over both solves (a warm re-solve keeps the
+    scanned guess ``old`` descends from)."""
+    return replace(new, solve_time_s=new.solve_time_s + old.solve_time_s, iterations=new.iterations + old.iterations,
+                   start_guess=new.start_guess if new.start_guess >= 0 else old.start_guess)
 
 
 def _spline_samples(spline: UniformCubicBSpline, V: Array, ff: FreeFloatingModel, x0: Array,

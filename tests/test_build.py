@@ -126,7 +126,10 @@ def test_kill_9_at_random_moments_then_resume_equals_uninterrupted(grid_file, tm
     run_build(grid_file, reference, BuildOptions(jobs=2, solver=FAKE, progress=False))
     out = tmp_path / "killed.h5"
     # 1 s per point: 9 points on 2 processes take ≥ 5 s, so three kills land before the end
-    env = dict(os.environ, LUTGEN_FAKE_SLEEP_S="1.0")
+    # a SIGKILLed build cannot remove its points' scratch directories; keep them in this test's tmp_path
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    env = dict(os.environ, LUTGEN_FAKE_SLEEP_S="1.0", TMPDIR=str(scratch))
     rng = np.random.default_rng(7)
     script = BUILD_SCRIPT.format(fake=FAKE)
     kills = 0
@@ -165,8 +168,12 @@ def test_dask_local_cluster_gives_the_same_table_as_loky(grid_file, tmp_path):
     distributed = pytest.importorskip("distributed", reason="the 'dask' extra is not installed")
     loky = tmp_path / "loky.h5"
     run_build(grid_file, loky, BuildOptions(jobs=2, solver=FAKE, progress=False))
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
+    import dask
+
+    # the scheduler and workers keep their scratch space in this test's tmp_path, not the machine's /tmp
+    with dask.config.set({"temporary-directory": str(tmp_path / "dask")}), \
+            distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                     dashboard_address=None) as cluster:
         dask_out = tmp_path / "dask.h5"
         run_build(grid_file, dask_out, BuildOptions(backend="dask", scheduler=cluster.scheduler_address,
                                                      solver=FAKE, progress=False))

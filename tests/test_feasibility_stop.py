@@ -49,3 +49,26 @@ def test_never_stops_while_a_slack_is_still_open():
     sol = solver(x0=[1.0, 2.0, 5.0], lbx=[-np.inf, 2.0, 0.0], ubx=[np.inf, 2.0, np.inf], lbg=-np.inf, ubg=1.0)
     assert not stop.stopped and solver.stats()["success"]
     assert float(sol["x"][2]) > 3.0 - 1e-6  # x² + 4 − s ≤ 1 needs s ≥ 3
+
+
+def test_an_iteration_budget_ends_the_solve_after_that_many_iterations():
+    x0 = [3.0, -2.0, 12.5]
+    _, stats_full = _solve(None, x0)
+    assert stats_full["iter_count"] > 5  # the budget below must cut the solve short
+    stop = FeasibilityStop("toy_budget", 3, 1, 0, slice(2, 3), slack_tol=1e-6, constraint_tol=1e-9)
+    w = ca.MX.sym("w", 3)
+    solver = ca.nlpsol("toy3", "ipopt", {"x": w, "f": 1e-6 * ((w[0] - 0.3) ** 2 + w[1] ** 2) + 100 * w[2],
+                                         "g": w[0] ** 2 + w[1] ** 2 - w[2]},
+                       {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
+                        "ipopt.hessian_approximation": "limited-memory", "iteration_callback": stop})
+    kwargs = {"x0": x0, "lbx": [-np.inf, -np.inf, 0.0], "ubx": [np.inf] * 3, "lbg": -np.inf, "ubg": 1.0}
+    # the budget alone (no feasibility test): exactly 3 iterations
+    stop.arm(np.array([-np.inf]), np.array([1.0]), stop_when_feasible=False, max_iterations=3)
+    solver(**kwargs)
+    assert stop.budget_exhausted and not stop.stopped
+    assert solver.stats()["iter_count"] == 3 and solver.stats()["return_status"] == "User_Requested_Stop"
+    # re-armed without a budget and without the feasibility test, the same solver runs to IPOPT's own end
+    stop.arm(np.array([-np.inf]), np.array([1.0]), stop_when_feasible=False)
+    solver(**kwargs)
+    assert not stop.budget_exhausted and not stop.stopped
+    assert solver.stats()["success"] and solver.stats()["iter_count"] == stats_full["iter_count"]

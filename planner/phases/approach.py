@@ -62,6 +62,9 @@ class ApproachSolution:
     solve_time_s: float
     cost: float
     min_distance_m: float  # at the via points, unscaled geometry
+    # index of the scanned initial guess (approach_guess.initial_guesses, best first) this solution descends
+    # from; -1 when it started from a warm start
+    start_guess: int = -1
 
 
 def _free_axis_rotation(M, axis: Array):  # noqa: ANN001, ANN202
@@ -299,13 +302,15 @@ class ApproachProblem:
         return qd_nodes + ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), twist_base - ca.mtimes(J, qd_nodes)))
 
     def solve(self, state: TargetState, warm_start: ApproachSolution | None = None,
-              max_starts: int = 3, tracking_speed_scale: float | None = None) -> ApproachSolution:
+              max_starts: int = 3, tracking_speed_scale: float | None = None,
+              skip_guesses: int = 0) -> ApproachSolution:
         """Solve for one observed target state.
 
         With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if
-        that fails, it starts from up to ``max_starts`` scanned initial guesses, best first, and returns
-        the first success (or the last attempt, with its failure status). ``tracking_speed_scale``
-        scales the tracking-node rate bounds (kept for later solves).
+        that fails, it starts from the ``max_starts`` best scanned initial guesses, best first, less the
+        first ``skip_guesses`` of them (the planner's next grasp when a stabilization failed), and returns
+        the first success (or the last attempt, with its failure status; its ``start_guess`` says which
+        guess). ``tracking_speed_scale`` scales the tracking-node rate bounds (kept for later solves).
         """
         if tracking_speed_scale is not None:
             self.tracking_speed_scale = tracking_speed_scale
@@ -313,7 +318,7 @@ class ApproachProblem:
         starts = []
         result = None
         iterations = 0
-        if warm_start is None and self.scenario.costs.approach_energy > 0:
+        if warm_start is None and self.scenario.costs.approach_energy > 0 and skip_guesses == 0:
             # Eq. 16 is smallest at the base-offset guess (0 in the paper's scenarios), but free-base starts
             # lead IPOPT into local minima where the stopping room and the tracking rates hold the base
             # away (scenario I: |θ_b(0)| = 0.885 m, while a plan with the base pinned at 0 is feasible).
@@ -329,14 +334,25 @@ class ApproachProblem:
         for attempt in range(max_starts + len(starts)):
             if attempt == len(starts):
                 starts += [np.concatenate([g.params, g.base_offset_m, [g.start_delay_s], g.q_tracking.ravel()])
-                           for g in initial_guesses(self.scenario, self.spline, state, max_starts)]
+                           for g in initial_guesses(self.scenario, self.spline, state, max_starts)[skip_guesses:]]
             if attempt >= len(starts) or (attempt > 0 and time.perf_counter() - t0 > self.scenario.solver.max_wall_s):
                 break
             result = self._solve_once(state, starts[attempt], cold=attempt >= n_warm)
+            if attempt >= n_warm:
+                result = replace(result, start_guess=skip_guesses + attempt - n_warm)
             iterations += result.iterations
             if result.success:
                 break
+        if result is None:
+            return self._no_start("no scanned initial guess left to start from", self.scenario.base_offset_guess_m,
+                                  time.perf_counter() - t0)
         return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+    def _no_start(self, status: str, base_offset_m: tuple[float, float], elapsed_s: float) -> ApproachSolution:
+        """A failed solution for when no NLP start exists (``status`` says why)."""
+        return ApproachSolution(np.zeros(self.n_params), np.asarray(base_offset_m, dtype=float), 0.0,
+                                np.zeros((len(TRACKING_NODES), self.robot.n_joints)), False, status, 0, elapsed_s,
+                                np.inf, np.nan)
 
     def _solve_base_pinned(self, state: TargetState, max_starts: int) -> ApproachSolution:
         """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from guesses made for that base."""
@@ -353,10 +369,7 @@ class ApproachProblem:
             if result.success or time.perf_counter() - t0 > self.scenario.solver.max_wall_s:
                 break
         if result is None:
-            return ApproachSolution(np.zeros(self.n_params), np.array([gx, gz]), 0.0,
-                                    np.zeros((len(TRACKING_NODES), self.robot.n_joints)), False,
-                                    "no reachable meeting time with the base pinned", 0,
-                                    time.perf_counter() - t0, np.inf, np.nan)
+            return self._no_start("no reachable meeting time with the base pinned", (gx, gz), time.perf_counter() - t0)
         return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
 
     @property

@@ -10,6 +10,10 @@ the caller reports it as a feasible solution).
 Optional slack variables of an elastic (ℓ1-penalty) formulation are checked too: a relaxed constraint
 is satisfied only once its slack is below ``slack_tol``. (Elastic mode was tried on the stabilization
 NLP and dropped: it converged fast but into local minima that kept decimetres of collision slack.)
+
+The same callback can also end a solve after an iteration budget (``max_iterations`` in :meth:`arm`,
+``budget_exhausted`` afterwards): the planner gives a stabilization from one grasp a budget when another
+grasp is there to try (:mod:`planner.plan`). The budget works with or without the feasibility test.
 """
 
 from __future__ import annotations
@@ -22,7 +26,8 @@ Array = NDArray[np.float64]
 
 
 class FeasibilityStop(ca.Callback):
-    """IPOPT iteration callback: returns 1 (stop) once ``lbg − tol ≤ g ≤ ubg + tol`` and slacks ≤ slack_tol."""
+    """IPOPT iteration callback: returns 1 (stop) once ``lbg − tol ≤ g ≤ ubg + tol`` and slacks ≤ slack_tol,
+    or once the armed iteration budget is spent."""
 
     def __init__(self, name: str, n_x: int, n_g: int, n_p: int, slack_index: slice, slack_tol: float | Array,
                  constraint_tol: float) -> None:
@@ -34,12 +39,24 @@ class FeasibilityStop(ca.Callback):
         self.lbg = np.full(n_g, -np.inf)
         self.ubg = np.full(n_g, np.inf)
         self.stopped = False
+        self.stop_when_feasible = True
+        self.max_iterations: int | None = None
+        self.budget_exhausted = False
+        self._calls = 0
         self.construct(name, {})
 
-    def arm(self, lbg: Array, ubg: Array) -> None:
-        """Set the bounds of the coming solve and clear the stop flag."""
+    def arm(self, lbg: Array, ubg: Array, stop_when_feasible: bool = True, max_iterations: int | None = None) -> None:
+        """Set the bounds of the coming solve and clear the stop flags.
+
+        ``stop_when_feasible`` False keeps only the budget; ``max_iterations`` (None: none) stops the solve
+        after that many IPOPT iterations.
+        """
         self.lbg, self.ubg = np.asarray(lbg, dtype=float), np.asarray(ubg, dtype=float)
+        self.stop_when_feasible = stop_when_feasible
+        self.max_iterations = max_iterations
         self.stopped = False
+        self.budget_exhausted = False
+        self._calls = 0
 
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
@@ -59,8 +76,13 @@ class FeasibilityStop(ca.Callback):
         return ca.Sparsity.dense(size)
 
     def eval(self, arg: list) -> list:
-        x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
-        g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
-        violation = float(np.max(np.maximum(self.lbg - g, g - self.ubg), initial=0.0))
-        self.stopped = violation <= self.constraint_tol and bool(np.all(x[self.slack_index] <= self.slack_tol))
-        return [1.0 if self.stopped else 0.0]
+        iteration = self._calls  # IPOPT calls back once per iteration, iteration 0 (the start) included
+        self._calls += 1
+        if self.stop_when_feasible:
+            x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
+            g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
+            violation = float(np.max(np.maximum(self.lbg - g, g - self.ubg), initial=0.0))
+            self.stopped = violation <= self.constraint_tol and bool(np.all(x[self.slack_index] <= self.slack_tol))
+        self.budget_exhausted = not self.stopped and self.max_iterations is not None \
+            and iteration >= self.max_iterations
+        return [1.0 if self.stopped or self.budget_exhausted else 0.0]

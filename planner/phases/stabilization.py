@@ -260,14 +260,12 @@ class StabilizationProblem:
         self.n_dist = k * n_d
         self.outputs = ca.Function("stabilization_outputs", [P, par], [M_all, F_all, ca.vertcat(*dists)])
         nlp = {"x": ca.vertcat(P, *w_extra), "p": par, "f": cost, "g": ca.vertcat(*g)}
-        options = {}
-        self.stop = None
-        if c.attitude_disturbance == 0 and c.peak_wrench == 0:
-            # nothing to optimise: the first iterate inside every constraint is the answer
-            self.stop = FeasibilityStop("stabilization_feasible", self.n_params + self.n_extra, len(self.lbg),
-                                        par.numel(), slice(0, 0), 0.0, STOP_CONSTRAINT_TOL)
-            options["iteration_callback"] = self.stop
-        self.solver = ipopt_solver("stabilization", nlp, options | ipopt_options(sc.solver))
+        # with nothing to optimise, the first iterate inside every constraint is the answer; the same callback
+        # enforces an iteration budget when the caller gives one
+        self.feasibility_only = c.attitude_disturbance == 0 and c.peak_wrench == 0
+        self.stop = FeasibilityStop("stabilization_stop", self.n_params + self.n_extra, len(self.lbg), par.numel(),
+                                    slice(0, 0), 0.0, STOP_CONSTRAINT_TOL)
+        self.solver = ipopt_solver("stabilization", nlp, {"iteration_callback": self.stop} | ipopt_options(sc.solver))
         self.build_time_s = time.perf_counter() - t_build
 
     def initial_params(self, grasp: GraspState) -> Array:
@@ -296,22 +294,29 @@ class StabilizationProblem:
         P, *_ = np.linalg.lstsq(W @ G, q_path - W @ offset, rcond=None)
         return P.reshape(-1)
 
-    def solve(self, grasp: GraspState, warm_params: Array | None = None) -> StabilizationSolution:
+    def solve(self, grasp: GraspState, warm_params: Array | None = None,
+              max_iterations: int | None = None) -> StabilizationSolution:
         """Solve for ``grasp``, from ``warm_params`` or, cold, by way of the coarse problem.
 
         A cold start first solves the coarse NLP (``coarse_via_points`` via points; per iteration about a
         third of the cost) from :meth:`initial_params` and starts the full NLP from its answer, which sits
         near the full NLP's feasible set; should that solve fail, the full NLP is solved from
         :meth:`initial_params` as well, so a cold solve never does worse than the full NLP alone. The
-        returned times and iteration counts cover every solve made.
+        returned times and iteration counts cover every solve made. ``max_iterations`` (None: only the
+        scenario's per-NLP ``max_iter``) bounds the IPOPT iterations of all those solves together; a solve
+        that spends it ends unsuccessful with status ``Iteration_Budget_Exhausted``.
         """
         if warm_params is not None or self.coarse_via_points == 0:
-            return self._solve(grasp, warm_params)
+            return self._solve(grasp, warm_params, max_iterations)
         coarse = self.coarse_problem()
-        guess = coarse._solve(grasp, None)
-        attempts = [guess, self._solve(grasp, guess.params)]
-        if not attempts[-1].success:
-            attempts.append(self._solve(grasp, None))
+        attempts = [coarse._solve(grasp, None, max_iterations)]
+        for start in (attempts[0].params, None):
+            left = None if max_iterations is None else max_iterations - sum(a.iterations for a in attempts)
+            if left is not None and left <= 0:
+                break
+            attempts.append(self._solve(grasp, start, left))
+            if attempts[-1].success:
+                break
         last = attempts[-1]
         return replace(last, iterations=sum(a.iterations for a in attempts),
                        solve_time_s=sum(a.solve_time_s for a in attempts),
@@ -326,14 +331,14 @@ class StabilizationProblem:
                                                 self.torque_limit_nm)
         return self._coarse
 
-    def _solve(self, grasp: GraspState, warm_params: Array | None) -> StabilizationSolution:
+    def _solve(self, grasp: GraspState, warm_params: Array | None,
+               max_iterations: int | None = None) -> StabilizationSolution:
         par = np.concatenate([grasp.q, grasp.qd, grasp.qdd, grasp.x_base, grasp.h_world])
         w0 = self.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
         if self.n_extra:
             M0, _, _ = self.outputs(w0, par)
             w0 = np.concatenate([w0, [float(np.abs(np.asarray(M0)).max())]])
-        if self.stop is not None:
-            self.stop.arm(self.lbg, self.ubg)
+        self.stop.arm(self.lbg, self.ubg, self.feasibility_only, max_iterations)
         t0 = time.perf_counter()
         sol = self.solver(x0=w0, p=par, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=self.ubg)
         elapsed = time.perf_counter() - t0
@@ -341,8 +346,10 @@ class StabilizationProblem:
         P = np.asarray(sol["x"]).ravel()[: self.n_params]
         M, _, d = (np.asarray(a).ravel() for a in self.outputs(P, par))
         success, status = bool(stats["success"]), str(stats["return_status"])
-        if self.stop is not None and self.stop.stopped:
+        if self.stop.stopped:
             success, status = True, "Feasible_Point_Found"
+        elif self.stop.budget_exhausted:
+            success, status = False, "Iteration_Budget_Exhausted"
         return StabilizationSolution(P, success, status, int(stats["iter_count"]),
                                      elapsed, self.build_time_s, float(sol["f"]), float(np.abs(M).max()),
                                      float(d.min()))
