@@ -101,7 +101,8 @@ def test_cold_solve_falls_back_to_the_full_nlp_when_the_warm_solve_fails(problem
     calls = []
     template = StabilizationSolution(np.zeros(problem.n_params), True, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
-    def fake_solve(self, g, warm_params):
+    def fake_solve(self, g, warm_params, max_iterations=None):
+        assert max_iterations is None  # no budget asked, none passed on
         calls.append((self is problem, None if warm_params is None else np.asarray(warm_params).copy()))
         n = len(calls)
         sol = replace(template, params=np.full(problem.n_params, float(n)), iterations=10 * n,
@@ -118,13 +119,37 @@ def test_cold_solve_falls_back_to_the_full_nlp_when_the_warm_solve_fails(problem
     assert sol.build_time_s == problem.build_time_s + problem.coarse_problem().build_time_s
 
 
+def test_an_iteration_budget_is_shared_by_the_coarse_and_full_solves(problem, grasp, monkeypatch):
+    """The budget bounds the iterations of all solves together: each gets what the earlier ones left, and
+    none starts once it is spent."""
+    calls = []
+    template = StabilizationSolution(np.zeros(problem.n_params), False, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def fake_solve(self, g, warm_params, max_iterations=None):
+        calls.append(max_iterations)
+        return replace(template, iterations=min(70, max_iterations), status="Iteration_Budget_Exhausted"
+                       if max_iterations <= 70 else "Infeasible_Problem_Detected")
+
+    monkeypatch.setattr(StabilizationProblem, "_solve", fake_solve)
+    sol = problem.solve(grasp, max_iterations=120)
+    assert calls == [120, 50]  # coarse: 70 of 120; full from the coarse answer: the 50 left; then nothing
+    assert sol.iterations == 120 and not sol.success and sol.status == "Iteration_Budget_Exhausted"
+
+
 def test_warm_solve_skips_the_coarse_problem(problem, grasp, monkeypatch):
     calls = []
 
-    def fake_solve(self, g, warm_params):
-        calls.append(self is problem)
+    def fake_solve(self, g, warm_params, max_iterations=None):
+        calls.append((self is problem, max_iterations))
         return "answer"
 
     monkeypatch.setattr(StabilizationProblem, "_solve", fake_solve)
-    assert problem.solve(grasp, problem.initial_params(grasp)) == "answer"
-    assert calls == [True]
+    assert problem.solve(grasp, problem.initial_params(grasp), max_iterations=30) == "answer"
+    assert calls == [(True, 30)]
+
+
+def test_a_real_solve_stops_at_its_iteration_budget(problem, grasp):
+    """The wiring to IPOPT: from the cold guess (far outside the torque limit, so not feasible within 3
+    iterations) a budget of 3 ends the solve after exactly 3 iterations, unsuccessful, named as such."""
+    sol = problem._solve(grasp, None, 3)
+    assert sol.iterations == 3 and not sol.success and sol.status == "Iteration_Budget_Exhausted"
