@@ -13,6 +13,7 @@ next scanned meeting times (see :meth:`Planner.plan`). Times are seconds since t
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -98,13 +99,21 @@ class Planner:
         self.ff = FreeFloatingModel(scenario.robot)
         self.approach = ApproachProblem(scenario, self.ff)
         self.tracking = TrackingController(scenario, self.ff)
-        self._stabilization: dict[float, StabilizationProblem] = {}
+        self._stabilization: OrderedDict[float, StabilizationProblem] = OrderedDict()
         self.build_time_s = time.perf_counter() - t0
 
     def stabilization_problem(self, T_ee_target: Array, psi: float) -> StabilizationProblem:
+        """The stabilization NLP of a grasp geometry (free-axis angle ``psi``, rad), built on first use.
+
+        The last :data:`GRASP_GUESSES` geometries are kept: a plan that tries other grasps and falls back to
+        its first finds that one's problem still built.
+        """
         key = round(psi, 9)
         if key not in self._stabilization:
-            self._stabilization = {key: StabilizationProblem(self.scenario, T_ee_target)}
+            self._stabilization[key] = StabilizationProblem(self.scenario, T_ee_target)
+            while len(self._stabilization) > GRASP_GUESSES:
+                self._stabilization.popitem(last=False)
+        self._stabilization.move_to_end(key)
         return self._stabilization[key]
 
     def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:

@@ -25,12 +25,14 @@ def planner_II():
     return sc, Planner(sc)
 
 
-def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: int):
-    """A ``GraspCandidate.stabilize`` that records (start guess, budget, grasp time) and succeeds only from
-    grasps reached from scanned guess ``succeed_from_guess`` or later."""
+def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: int, problems: list | None = None):
+    """A ``GraspCandidate.stabilize`` that records (start guess, budget, grasp time), and the NLP object used
+    in ``problems``, and succeeds only from grasps reached from scanned guess ``succeed_from_guess`` or later."""
 
     def stabilize(self: GraspCandidate, warm_params, max_iterations):  # noqa: ANN001, ANN202
         calls.append((self.app.start_guess, max_iterations, self.grasp_time_s))
+        if problems is not None:
+            problems.append(self.problem)
         ok = self.app.start_guess >= succeed_from_guess
         status = "stand-in ok" if ok else "stand-in failed"
         return StabilizationSolution(self.problem.initial_params(self.grasp), ok, status, 1, 0.0, 0.0, 0.0,
@@ -57,13 +59,15 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
 def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(planner_II, monkeypatch):
     sc, planner = planner_II
     calls: list[tuple[int, int | None, float]] = []
-    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES))
+    problems = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES, problems))
     plan = planner.plan(sc.target_state.as_state())
     # every grasp under the budget (scanned guesses in order), then the first again without it
     assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
     guesses = [c[0] for c in calls[:-1]]
     assert guesses[0] == 0 and guesses == sorted(set(guesses)) and guesses[-1] <= GRASP_GUESSES - 1
     assert calls[-1] == (0, None, calls[0][2])  # the first grasp, whole
+    assert problems[-1] is problems[0]  # its NLPs kept by the planner, not built again
     assert plan.approach.start_guess == 0 and plan.t_grasp == pytest.approx(calls[0][2])
     assert not plan.solver_ok and "solved again without it" in plan.notes[-1]
 
