@@ -167,6 +167,8 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     report = verify(result, step_s=verify_step_s)
     for line in _plan_table(result, report):
         click.echo(line)
+    for note in result.notes:  # e.g. the approach re-solved, or the plan made from another grasp
+        click.echo(f"note: {note}")
     for line in summary_lines(report):
         click.echo(line)
     if out_path:
@@ -186,9 +188,11 @@ def _plan_table(result, report) -> list[str]:  # noqa: ANN001
 
     a, s = result.approach, result.stabilization
     lines = ["phase          start [s]   end [s]   solver                 iters   time [s]"]
-    solver = {"approach": (a.status, a.iterations, a.solve_time_s),
-              "tracking": ("IK (Eq. 7)", "-", result.timings_s.get("tracking_s", 0.0)),
-              "stabilization": (s.status, s.iterations, s.solve_time_s + s.build_time_s)}
+    # phase times from the plan's timings where it has them: they include every grasp a plan tried
+    t = result.timings_s
+    solver = {"approach": (a.status, a.iterations, t.get("approach_s") or a.solve_time_s),
+              "tracking": ("IK (Eq. 7)", "-", t.get("tracking_s", 0.0)),
+              "stabilization": (s.status, s.iterations, t.get("stabilization_s") or s.solve_time_s + s.build_time_s)}
     for name, (t0, t1) in result.phases.items():
         st, it, tm = solver[name]
         lines.append(f"{name:<14} {t0:9.2f} {t1:9.2f}   {st:<22} {it!s:>5} {tm:9.2f}")

@@ -140,10 +140,12 @@ class Planner:
             t_stab = time.perf_counter()
             stab = candidate.stabilize(warm_stab, budget)
             stab_s += time.perf_counter() - t_stab
+            if not stab.success and budget is not None:
+                notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s failed within "
+                             f"{budget} iterations ({stab.status})" + ("; trying the approach's next guess" if more
+                                                                       else ""))
             if stab.success or not more:
                 break
-            notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s failed within "
-                         f"{STABILIZATION_BUDGET} iterations ({stab.status}); trying the approach's next guess")
             nxt = self.approach.solve(state, None, max_starts=GRASP_GUESSES,
                                       skip_guesses=candidate.app.start_guess + 1)
             if not nxt.success:
