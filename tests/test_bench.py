@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -27,15 +28,18 @@ def _reject_constant(name: str) -> None:
     raise ValueError(f"non-finite number {name} in the JSON")
 
 
-def _bench(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "scripts/bench.py", "--quick", "--trim", *args], cwd=ROOT,
-                          capture_output=True, text=True, timeout=900)
+def _bench(out: Path, *args: str) -> subprocess.CompletedProcess:
+    """``scripts/bench.py --quick --trim --out OUT ARGS``; Dask's scratch space goes beside ``out``, not into
+    the machine's /tmp."""
+    env = dict(os.environ, DASK_TEMPORARY_DIRECTORY=str(out.parent / "dask-scratch"))
+    return subprocess.run([sys.executable, "scripts/bench.py", "--quick", "--trim", "--out", str(out), *args],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
 
 
 @pytest.fixture(scope="module")
 def run_path(tmp_path_factory) -> tuple[Path, str]:
     out = tmp_path_factory.mktemp("bench") / "bench.json"
-    proc = _bench("--out", str(out))
+    proc = _bench(out)
     assert proc.returncode == 0, proc.stderr[-4000:]
     return out, proc.stdout
 
@@ -161,12 +165,12 @@ def test_only_reruns_the_named_section_and_keeps_the_others(run_path, tmp_path):
     before = json.loads(run_path[0].read_text())
     out = tmp_path / "bench.json"
     out.write_text(run_path[0].read_text())
-    proc = _bench("--only", "primitives", "--out", str(out))
+    proc = _bench(out, "--only", "primitives")
     assert proc.returncode == 0, proc.stderr[-4000:]
     after = json.loads(out.read_text())
     for section in ("query", "build", "planner", "baseline", "wall_s"):
         assert after[section] == before[section], section
     assert after["machine"]["sections_rerun"] == ["primitives"]
     assert after["primitives"]["section_wall_s"] != before["primitives"]["section_wall_s"]  # measured again
-    bad = _bench("--only", "primitivs", "--out", str(out))
+    bad = _bench(out, "--only", "primitivs")
     assert bad.returncode == 2 and "primitivs" in bad.stderr
