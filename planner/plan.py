@@ -133,35 +133,40 @@ class Planner:
         candidate = first = self._grasp_candidate(state, app, motion, notes)
         approach_s, stab_s = candidate.app.solve_time_s, 0.0  # NLP time, tracking-rate re-solves included
         warm_stab = warm.stabilization_params if warm is not None else None
+
+        def stabilize(c: GraspCandidate, budget: int | None) -> StabilizationSolution:
+            nonlocal stab_s
+            t0 = time.perf_counter()  # the phase's wall time: NLP builds (if new) and solves
+            result = c.stabilize(warm_stab, budget)
+            stab_s += time.perf_counter() - t0
+            return result
+
         while True:
             more = warm is None and candidate.app.success and 0 <= candidate.app.start_guess < GRASP_GUESSES - 1
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
-            t_stab = time.perf_counter()
-            stab = candidate.stabilize(warm_stab, budget)
-            stab_s += time.perf_counter() - t_stab
-            if not stab.success and budget is not None:
-                notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s failed within "
-                             f"{budget} iterations ({stab.status})" + ("; trying the approach's next guess" if more
-                                                                       else ""))
-            if stab.success or not more:
+            stab = stabilize(candidate, budget)
+            if stab.success or budget is None:
+                break
+            failed = f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s failed within {budget} " \
+                     f"iterations ({stab.status})"
+            notes.append(failed + ("; trying the approach's next guess" if more else ""))
+            if not more:
                 break
             nxt = self.approach.solve(state, None, max_starts=GRASP_GUESSES,
                                       skip_guesses=candidate.app.start_guess + 1)
             if not nxt.success:
                 approach_s += nxt.solve_time_s
                 notes.append(f"the approach from its next guesses failed ({nxt.status})")
-                candidate = None
                 break
             candidate = self._grasp_candidate(state, nxt, motion, notes)
             approach_s += candidate.app.solve_time_s
-        if candidate is None or not stab.success and candidate is not first:
+        if not stab.success and budget is not None:
+            # a budgeted failure is never the answer: the first grasp gets its whole solve
             notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
                          "again without it")
             candidate = first
-            t_stab = time.perf_counter()
-            stab = candidate.stabilize(warm_stab, None)
-            stab_s += time.perf_counter() - t_stab
+            stab = stabilize(first, None)
         timings = {"approach_s": approach_s, "stabilization_s": stab_s}
         c = candidate
         plan = self._assemble(state, c.app, c.approach_samples, c.tracking, c.grasp, c.T_body_grasp_used,

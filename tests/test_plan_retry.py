@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import planner.phases.approach as approach_module
+from planner.phases.approach_guess import initial_guesses
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner
 from planner.scenario import load_scenario
@@ -45,7 +47,11 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     sc, planner = planner_II
     calls: list[tuple[int, int | None, float]] = []
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
+    scans = []
+    monkeypatch.setattr(approach_module, "initial_guesses", lambda *a: scans.append(a) or initial_guesses(*a))
+    monkeypatch.setattr(planner.approach, "_scan", None)  # forget an earlier test's scan of this state
     plan = planner.plan(sc.target_state.as_state())
+    assert len(scans) == 1  # the retry starts from the same scan's next guess, not a new scan
     assert calls[0][:2] == (0, STABILIZATION_BUDGET)  # the first grasp, under the budget: another remains
     assert len(calls) == 2 and calls[1][0] >= 1
     # budgeted as well: the first grasp would remain to fall back to

@@ -29,7 +29,7 @@ from planner.collision_callback import SceneDistanceCallback, pose_vector
 from planner.costs import manipulability_sym
 from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
 from planner.phases import constraint_backoff
-from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, initial_guesses
+from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, ApproachGuess, initial_guesses
 from planner.phases.ipopt import ipopt_options, ipopt_solver
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m
 from planner.robot import fk_function
@@ -279,6 +279,9 @@ class ApproachProblem:
         self._options = ipopt_options(sc.solver)
         self.solver = ipopt_solver("approach", self._nlp, self._options)
         self._cold_solver: ca.Function | None = None
+        # the last scan of initial guesses, keyed by target state and count: a plan that retries from the
+        # next guesses (planner.plan) asks for the same scan again
+        self._scan: tuple[tuple[bytes, bytes, int], list[ApproachGuess]] | None = None
         self.n_pairs = n_d
         self.n_dist = len(all_poses) * n_d
 
@@ -334,7 +337,7 @@ class ApproachProblem:
         for attempt in range(max_starts + len(starts)):
             if attempt == len(starts):
                 starts += [np.concatenate([g.params, g.base_offset_m, [g.start_delay_s], g.q_tracking.ravel()])
-                           for g in initial_guesses(self.scenario, self.spline, state, max_starts)[skip_guesses:]]
+                           for g in self._scanned_guesses(state, max_starts)[skip_guesses:]]
             if attempt >= len(starts) or (attempt > 0 and time.perf_counter() - t0 > self.scenario.solver.max_wall_s):
                 break
             result = self._solve_once(state, starts[attempt], cold=attempt >= n_warm)
@@ -347,6 +350,13 @@ class ApproachProblem:
             return self._no_start("no scanned initial guess left to start from", self.scenario.base_offset_guess_m,
                                   time.perf_counter() - t0)
         return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+    def _scanned_guesses(self, state: TargetState, count: int) -> list[ApproachGuess]:
+        """``initial_guesses`` for this scenario, computed once per target state and count (deterministic)."""
+        key = (state.attitude_wxyz.tobytes(), state.omega_body_rad_s.tobytes(), count)
+        if self._scan is None or self._scan[0] != key:
+            self._scan = (key, initial_guesses(self.scenario, self.spline, state, count))
+        return self._scan[1]
 
     def _no_start(self, status: str, base_offset_m: tuple[float, float], elapsed_s: float) -> ApproachSolution:
         """A failed solution for when no NLP start exists (``status`` says why)."""
