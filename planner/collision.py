@@ -267,6 +267,27 @@ class CollisionScene:
         Raises:
             KeyError: a body of some pair has no pose.
         """
+        d, PA, PB, N, best_ids = self._sweep(T_world_body)
+        cores = self._cores
+        return [
+            PairDistance(
+                pair=pair,
+                distance_m=float(d[k]),
+                p_world_a=PA[k],
+                p_world_b=PB[k],
+                normal_world=N[k],
+                shape_pair=(cores[i].name, cores[j].name),
+            )
+            for k, (pair, (i, j)) in enumerate(zip(self._pairs, best_ids, strict=True))
+        ]
+
+    def distance_arrays(self, T_world_body: Mapping[str, ArrayLike]) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`distances` as arrays, one row per pair: distances (m), witness points on A and on B, unit
+        normals (world). For the NLPs' callbacks, which need no per-pair objects."""
+        return self._sweep(T_world_body)[:4]
+
+    def _sweep(self, T_world_body: Mapping[str, ArrayLike]) -> tuple:
+        """``(d, PA, PB, N, best_ids)``: what :meth:`distances` reports, and the core pair realising each."""
         cores = self._cores
         for name in self._used_bodies:
             try:
@@ -321,17 +342,7 @@ class CollisionScene:
         ids = np.array(best_ids)
         PA = CA + self._radii[ids[:, 0], None] * N
         PB = CB - self._radii[ids[:, 1], None] * N
-        return [
-            PairDistance(
-                pair=pair,
-                distance_m=float(d_best[k]),
-                p_world_a=PA[k],
-                p_world_b=PB[k],
-                normal_world=N[k],
-                shape_pair=(cores[i].name, cores[j].name),
-            )
-            for k, (pair, (i, j)) in enumerate(zip(self._pairs, best_ids, strict=True))
-        ]
+        return d_best, PA, PB, N, best_ids
 
     def _core_query(self, i: int, j: int) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
         """Signed distance (m) of cores i and j at their current transforms, and their witness points."""

@@ -507,3 +507,19 @@ def test_scene_validation() -> None:
     assert scene.pairs == (("A", "B"),)
     with pytest.raises(KeyError):
         scene.distances({"A": np.eye(4)})
+
+
+def test_distance_arrays_are_the_distances_as_rows() -> None:
+    """The callbacks' array form reports exactly what the per-pair objects do, pair by pair."""
+    scene, poses = _grasp_scene(None)
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        moved = {name: T @ _random_pose(rng, 0.05) for name, T in poses.items()}
+        d, p_a, p_b, n = scene.distance_arrays(moved)
+        objects = scene.distances(moved)
+        assert d.shape == (len(scene.pairs),)
+        for k, pd in enumerate(objects):
+            assert d[k] == pd.distance_m
+            np.testing.assert_array_equal(p_a[k], pd.p_world_a)
+            np.testing.assert_array_equal(p_b[k], pd.p_world_b)
+            np.testing.assert_array_equal(n[k], pd.normal_world)
