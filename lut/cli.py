@@ -1,13 +1,15 @@
 """The ``lutgen`` command line.
 
 Errors a user can cause (bad config, argument, file, target state) are printed as one line
-``error: …`` on stderr with exit code 1, never a traceback.
+``error: …`` on stderr with exit code 1, never a traceback. Warnings (e.g. compiled Functions falling back
+to interpreted ones, :mod:`planner.compiled`) are one line ``warning: …`` too.
 """
 
 from __future__ import annotations
 
 import functools
 import sys
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -30,6 +32,11 @@ def user_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                      line: str | None = None) -> str:
+    return f"warning: {message}\n"
+
+
 @click.group()
 @click.version_option(package_name="lutgen")
 def main() -> None:
@@ -40,6 +47,7 @@ def main() -> None:
       lutgen validate SCENARIO.toml               check a scenario, its robot URDF and its target
       lutgen plan SCENARIO.toml --out plan.json   plan one grasp directly (no table)
     """
+    warnings.formatwarning = _one_line_warning
 
 
 @main.command()

@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.compiled import compiled
 from planner.robot import RobotModel, chain_kinematics
 
 Array = NDArray[np.float64]
@@ -69,7 +70,7 @@ def _quat_times_pure(quat, omega):  # noqa: ANN001, ANN202
 class MomentumMap:
     """Symbolic pieces of the momentum map for joint angles ``q`` (base frame, see module doc)."""
 
-    mass_kg: float
+    mass_kg: object  # kg, a number or a symbol
     r_g: object  # system COM
     inertia_g: object  # Ĩ, system inertia about the COM
     J_Tw: object  # 3×n
@@ -84,11 +85,12 @@ def momentum_map(robot: RobotModel, q) -> MomentumMap:  # noqa: ANN001
     kin = chain_kinematics(robot, q)
     n = robot.n_joints
     zeros = ca.SX.zeros if isinstance(q, ca.SX) else ca.MX.zeros
-    M = robot.total_mass_kg
+    # inertias may be numbers or, for the compound after the grasp, symbols (planner.compound)
+    M = sum(body.mass_kg for body in robot.inertias)
     coms, Ib = [], []
     for i, body in enumerate(robot.inertias):
-        coms.append(kin.p[i] + ca.mtimes(kin.R[i], ca.DM(body.com_body_m)))
-        Ib.append(ca.mtimes(ca.mtimes(kin.R[i], ca.DM(body.inertia_com_kg_m2)), kin.R[i].T))
+        coms.append(kin.p[i] + ca.mtimes(kin.R[i], body.com_body_m))
+        Ib.append(ca.mtimes(ca.mtimes(kin.R[i], body.inertia_com_kg_m2), kin.R[i].T))
     r_g = sum((body.mass_kg * coms[i] for i, body in enumerate(robot.inertias)), zeros(3)) / M
     inertia_sum = zeros(3, 3)
     J_Tw = zeros(3, n)
@@ -157,6 +159,7 @@ class FreeFloatingModel:
     """
 
     robot: RobotModel
+    compile_rk4: bool = False  # rk4_step compiled to C (planner.compiled): for the NLPs of a Planner
     momentum: ca.Function = field(init=False)
     base_twist: ca.Function = field(init=False)
     gen_jacobian: ca.Function = field(init=False)
@@ -180,7 +183,9 @@ class FreeFloatingModel:
         J_star, D = generalized_jacobian_sym(mm)
         self.gen_jacobian = ca.Function("gen_jacobian", [q], [J_star, D, mm.R_ee, mm.p_ee],
                                         ["q"], ["J_star", "D", "R_ee", "p_ee"])
-        self.rk4_step = _rk4_step_function(self.robot, n)
+        self.rk4_step = rk4_step_function(self.robot)
+        if self.compile_rk4:
+            self.rk4_step = compiled(self.rk4_step)
 
     def integrate_base(
         self,
@@ -220,7 +225,14 @@ class FreeFloatingModel:
         return xs
 
 
-def _rk4_step_function(robot: RobotModel, n: int) -> ca.Function:
+def rk4_step_function(robot: RobotModel, parameters: ca.SX | None = None) -> ca.Function:
+    """``(x, q0, qd0, qm, qdm, q1, qd1, h_world, dt[, parameters]) -> x_next``: one RK4 step of the base pose.
+
+    ``parameters``: the SX symbols ``robot``'s inertias are written in (the compound's grasp geometry,
+    :mod:`planner.compound`), which become the Function's last input; None for a numeric robot.
+    """
+    n = robot.n_joints
+    extra = [] if parameters is None else [parameters]
     x = ca.SX.sym("x", 7)
     q0, qd0, qm, qdm, q1, qd1 = (ca.SX.sym(nm, n) for nm in ("q0", "qd0", "qm", "qdm", "q1", "qd1"))
     h = ca.SX.sym("h_world", 6)
@@ -229,13 +241,14 @@ def _rk4_step_function(robot: RobotModel, n: int) -> ca.Function:
     qs = ca.SX.sym("qs", n)
     qds = ca.SX.sym("qds", n)
     xs = ca.SX.sym("xs", 7)
-    rate = ca.Function("base_rate", [xs, qs, qds, h], [base_pose_rate_sym(momentum_map(robot, qs), xs, qds, h)])
-    k1 = rate(x, q0, qd0, h)
-    k2 = rate(x + 0.5 * dt * k1, qm, qdm, h)
-    k3 = rate(x + 0.5 * dt * k2, qm, qdm, h)
-    k4 = rate(x + dt * k3, q1, qd1, h)
+    rate = ca.Function("base_rate", [xs, qs, qds, h, *extra],
+                       [base_pose_rate_sym(momentum_map(robot, qs), xs, qds, h)])
+    k1 = rate(x, q0, qd0, h, *extra)
+    k2 = rate(x + 0.5 * dt * k1, qm, qdm, h, *extra)
+    k3 = rate(x + 0.5 * dt * k2, qm, qdm, h, *extra)
+    k4 = rate(x + dt * k3, q1, qd1, h, *extra)
     x_next = x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
     quat = x_next[3:7] / ca.sqrt(ca.sumsqr(x_next[3:7]))
-    return ca.Function("rk4_base_step", [x, q0, qd0, qm, qdm, q1, qd1, h, dt],
-                       [ca.vertcat(x_next[:3], quat)],
-                       ["x", "q0", "qd0", "qm", "qdm", "q1", "qd1", "h_world", "dt"], ["x_next"])
+    names = ["x", "q0", "qd0", "qm", "qdm", "q1", "qd1", "h_world", "dt"] + ["parameters"] * len(extra)
+    return ca.Function("rk4_base_step", [x, q0, qd0, qm, qdm, q1, qd1, h, dt, *extra],
+                       [ca.vertcat(x_next[:3], quat)], names, ["x_next"])

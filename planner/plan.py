@@ -13,13 +13,13 @@ next scanned meeting times (see :meth:`Planner.plan`). Times are seconds since t
 from __future__ import annotations
 
 import time
-from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from planner.bspline import UniformCubicBSpline, approach_vertices, stabilization_vertices
+from planner.compound import compound_robot
 from planner.freefloating import FreeFloatingModel
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import target_motion
@@ -27,8 +27,8 @@ from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
     StabilizationSolution,
-    compound_robot,
     grasp_momentum_world,
+    stabilization_spline,
 )
 from planner.phases.tracking import TrackingController, TrackingResult
 from planner.rotation import axis_angle_to_matrix
@@ -96,25 +96,19 @@ class Planner:
     def __init__(self, scenario: Scenario) -> None:
         t0 = time.perf_counter()
         self.scenario = scenario
-        self.ff = FreeFloatingModel(scenario.robot)
+        self.ff = FreeFloatingModel(scenario.robot, compile_rk4=True)
         self.approach = ApproachProblem(scenario, self.ff)
         self.tracking = TrackingController(scenario, self.ff)
-        self._stabilization: OrderedDict[float, StabilizationProblem] = OrderedDict()
+        self._stabilization: StabilizationProblem | None = None
+        self.stabilization_spline = stabilization_spline(scenario)
         self.build_time_s = time.perf_counter() - t0
 
-    def stabilization_problem(self, T_ee_target: Array, psi: float) -> StabilizationProblem:
-        """The stabilization NLP of a grasp geometry (free-axis angle ``psi``, rad), built on first use.
-
-        The last :data:`GRASP_GUESSES` geometries are kept: a plan that tries other grasps and falls back to
-        its first finds that one's problem still built.
-        """
-        key = round(psi, 9)
-        if key not in self._stabilization:
-            self._stabilization[key] = StabilizationProblem(self.scenario, T_ee_target)
-            while len(self._stabilization) > GRASP_GUESSES:
-                self._stabilization.popitem(last=False)
-        self._stabilization.move_to_end(key)
-        return self._stabilization[key]
+    @property
+    def stabilization_problem(self) -> StabilizationProblem:
+        """The scenario's stabilization NLP (every grasp geometry is a parameter of it), built on first use."""
+        if self._stabilization is None:
+            self._stabilization = StabilizationProblem(self.scenario)
+        return self._stabilization
 
     def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
@@ -126,6 +120,9 @@ class Planner:
         grasp (a table's neighbours stay in one family of solutions).
         """
         t_start = time.perf_counter()
+        # the approach keeps its scan for this plan's retries only: planning a state again costs what a new
+        # state costs (and a benchmark repeating one state measures that)
+        self.approach.forget_scan()
         warm = warm_start.as_warm_start() if isinstance(warm_start, GraspPlan) else warm_start
         notes: list[str] = []
         motion = self._motion(state)
@@ -169,8 +166,8 @@ class Planner:
             stab = stabilize(first, None)
         timings = {"approach_s": approach_s, "stabilization_s": stab_s}
         c = candidate
-        plan = self._assemble(state, c.app, c.approach_samples, c.tracking, c.grasp, c.T_body_grasp_used,
-                              c.problem, stab, timings, notes)
+        plan = self._assemble(state, c.app, c.approach_samples, c.tracking, c.grasp, c.T_body_grasp_used, stab,
+                              timings, notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
 
@@ -207,13 +204,13 @@ class Planner:
         app = warm.approach
         approach_samples, tr = self._approach_and_tracking(app, motion)
         grasp, T_body_grasp_used = self._grasp_state(tr, motion)
-        stab_problem = self.stabilization_problem(grasp.T_ee_target, tr.free_axis_angle_rad)
         params = warm.stabilization_params
         if params is None:
-            params = stab_problem.initial_params(grasp)
-        stab = StabilizationSolution(np.asarray(params, dtype=float), True, "given", 0, 0.0, stab_problem.build_time_s,
-                                     0.0, float("nan"), float("nan"))
-        plan = self._assemble(state, app, approach_samples, tr, grasp, T_body_grasp_used, stab_problem, stab,
+            params = self.stabilization_problem.initial_params(grasp)
+        # given parameters need no NLP: a query that only simulates and verifies never builds one
+        stab = StabilizationSolution(np.asarray(params, dtype=float), True, "given", 0, 0.0, 0.0, 0.0, float("nan"),
+                                     float("nan"))
+        plan = self._assemble(state, app, approach_samples, tr, grasp, T_body_grasp_used, stab,
                               {"approach_s": 0.0, "stabilization_s": 0.0}, ["simulated from given parameters"])
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
@@ -231,12 +228,12 @@ class Planner:
         return samples, tr
 
     def _assemble(self, state: TargetState, app: ApproachSolution, approach_samples: tuple, tr: TrackingResult,
-                  grasp: GraspState, T_body_grasp_used: Array, stab_problem: StabilizationProblem,
-                  stab: StabilizationSolution, timings: dict[str, float], notes: list[str]) -> GraspPlan:
+                  grasp: GraspState, T_body_grasp_used: Array, stab: StabilizationSolution, timings: dict[str, float],
+                  notes: list[str]) -> GraspPlan:
         sc = self.scenario
         tf1, tf2, tf3 = sc.phases.approach_s, sc.phases.tracking_s, sc.phases.stabilization_s
         t_app, q_app, qd_app, x_app = approach_samples
-        t_st, q_st, qd_st, x_st = self._stabilization_samples(stab_problem, stab, grasp)
+        t_st, q_st, qd_st, x_st = self._stabilization_samples(stab, grasp)
         t0 = app.start_delay_s
         phases = {"approach": (t0, t0 + tf1), "tracking": (t0 + tf1, t0 + tf1 + tf2),
                   "stabilization": (t0 + tf1 + tf2, t0 + tf1 + tf2 + tf3)}
@@ -270,11 +267,12 @@ class Planner:
         qdd = tr.qdd_end if sc.stabilization.start_acceleration == "continuous" else np.zeros_like(qd)
         return GraspState(q, qd, qdd, x, h_world, T_ee_target), T_bg
 
-    def _stabilization_samples(self, problem: StabilizationProblem, stab: StabilizationSolution,
+    def _stabilization_samples(self, stab: StabilizationSolution,
                                grasp: GraspState) -> tuple[Array, Array, Array, Array]:
-        V = stabilization_vertices(problem.spline, grasp.q, grasp.qd, grasp.qdd, stab.params)
-        ff_c = FreeFloatingModel(problem.compound)
-        return _spline_samples(problem.spline, V, ff_c, grasp.x_base, grasp.h_world)
+        spline = self.stabilization_spline
+        V = stabilization_vertices(spline, grasp.q, grasp.qd, grasp.qdd, stab.params)
+        ff_c = FreeFloatingModel(compound_robot(self.scenario, grasp.T_ee_target))
+        return _spline_samples(spline, V, ff_c, grasp.x_base, grasp.h_world)
 
 
 @dataclass
@@ -296,8 +294,8 @@ class GraspCandidate:
 
     @property
     def problem(self) -> StabilizationProblem:
-        """The stabilization NLP of this grasp's geometry (built on first use, kept by the planner)."""
-        return self.planner.stabilization_problem(self.grasp.T_ee_target, self.tracking.free_axis_angle_rad)
+        """The scenario's stabilization NLP (built on first use, kept by the planner)."""
+        return self.planner.stabilization_problem
 
     def stabilize(self, warm_params: Array | None, max_iterations: int | None) -> StabilizationSolution:
         return self.problem.solve(self.grasp, warm_params, max_iterations)

@@ -54,8 +54,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.compound import compound_robot
 from planner.phases.approach_guess import target_motion
-from planner.phases.stabilization import compound_robot
 from planner.verify_checks import (
     END_VELOCITY_TOL_RAD_S,
     FEASIBILITY_TOL,

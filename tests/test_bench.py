@@ -148,6 +148,8 @@ def test_planner_keys_exist_for_both_scenarios_and_variants(bench):
                 continue
             for key in ("approach_s", "stabilization_s", "total_s"):
                 _assert_timing(entry[key], f"{name} {variant} {key}")
+    assert isinstance(p["compiled_functions"]["enabled"], bool)
+    assert isinstance(p["compiled_functions"]["fallbacks"], list)
 
 
 def test_baseline_reports_both_solvers_on_the_same_problem(bench):

@@ -49,7 +49,6 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
     scans = []
     monkeypatch.setattr(approach_module, "initial_guesses", lambda *a: scans.append(a) or initial_guesses(*a))
-    monkeypatch.setattr(planner.approach, "_scan", None)  # forget an earlier test's scan of this state
     plan = planner.plan(sc.target_state.as_state())
     assert len(scans) == 1  # the retry starts from the same scan's next guess, not a new scan
     assert calls[0][:2] == (0, STABILIZATION_BUDGET)  # the first grasp, under the budget: another remains
@@ -60,6 +59,9 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     assert plan.stabilization.status == "stand-in ok" and plan.approach.start_guess == calls[1][0]
     assert plan.t_grasp == pytest.approx(calls[1][2])  # the plan is assembled from the grasp that succeeded
     assert any("trying the approach's next guess" in note for note in plan.notes)
+    # the scan is kept for one plan's retries only: planning the state again scans again, as a new state would
+    planner.plan(sc.target_state.as_state())
+    assert len(scans) == 2
 
 
 def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(planner_II, monkeypatch):

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from lut.plan_file import load_plan
+from planner.compound import compound_robot
 from planner.freefloating import FreeFloatingModel
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
     StabilizationSolution,
-    compound_robot,
     grasp_momentum_world,
 )
 from planner.rotation import quat_to_matrix
@@ -52,11 +52,7 @@ def grasp(scenario_II) -> GraspState:
 
 @pytest.fixture(scope="module")
 def problem(scenario_II, grasp) -> StabilizationProblem:
-    return StabilizationProblem(scenario_II, grasp.T_ee_target)
-
-
-def _parameters(grasp: GraspState) -> np.ndarray:
-    return np.concatenate([grasp.q, grasp.qd, grasp.qdd, grasp.x_base, grasp.h_world])
+    return StabilizationProblem(scenario_II)
 
 
 def test_constraint_jacobian_matches_central_differences(problem, grasp):
@@ -68,7 +64,7 @@ def test_constraint_jacobian_matches_central_differences(problem, grasp):
     while the fourth-order truncation (~h⁴) and roundoff (~1e-16·|g|/h) both stay below 1e-9 relative.
     The distance rows are left to tests/test_collision_callback.py (FCL's witness points switch faces).
     """
-    par = _parameters(grasp)
+    par = problem.parameters(grasp)
     P = problem.initial_params(grasp)
     g_fun = problem.solver.get_function("nlp_g")
     J = np.asarray(problem.solver.get_function("nlp_jac_g")(P, par)[1])

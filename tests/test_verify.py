@@ -16,8 +16,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from planner.compound import compound_robot, grasp_geometry
 from planner.freefloating import FreeFloatingModel
-from planner.phases.stabilization import GraspState, compound_robot
+from planner.phases.stabilization import GraspState
 from planner.plan import GraspPlan
 from planner.robot import pin_configuration
 from planner.rotation import matrix_to_quat, quat_to_matrix, rotation_log
@@ -265,14 +266,16 @@ def test_grasp_wrench_matches_the_exact_derivative_formula(builder):
     plan = builder.plan(path)
     report = verify(plan)
     sc = builder.scenario
-    fn = wrench_function(sc, compound_robot(sc, builder.T_ee_target), builder.T_ee_target)
+    fn = wrench_function(sc.robot)
+    geometry = grasp_geometry(sc, builder.T_ee_target)
     peak = np.abs(report.grasp_wrench).max()
     assert peak > 1.0
     for i in np.flatnonzero(report.t >= T_GRASP - 1e-9)[::10]:
         k = report.sample_index[i]
         qdd = np.zeros(7)
         qdd[j] = amplitude * 2 * (np.pi / duration) ** 2 * np.cos(2 * np.pi * (plan.t[k] - T_GRASP) / duration)
-        F, M = (np.asarray(a).ravel() for a in fn(plan.x_base[k], plan.q[k], plan.qd[k], qdd, np.zeros(6))[:2])
+        out = fn(plan.x_base[k], plan.q[k], plan.qd[k], qdd, np.zeros(6), geometry)
+        F, M = (np.asarray(a).ravel() for a in out[:2])
         np.testing.assert_allclose(report.grasp_wrench[i], np.concatenate([F, M]), atol=1e-5 * peak)
     assert report.checks["grasp_torque"].value == pytest.approx(np.abs(report.grasp_wrench[:, 3:]).max())
 

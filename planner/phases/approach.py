@@ -100,7 +100,7 @@ class ApproachProblem:
     def __init__(self, scenario: Scenario, ff: FreeFloatingModel | None = None) -> None:
         self.scenario = sc = scenario
         self.robot = sc.robot
-        self.ff = ff or FreeFloatingModel(sc.robot)
+        self.ff = ff or FreeFloatingModel(sc.robot, compile_rk4=True)
         n = self.robot.n_joints
         st = sc.approach
         tf = sc.phases.approach_s
@@ -350,6 +350,10 @@ class ApproachProblem:
             return self._no_start("no scanned initial guess left to start from", self.scenario.base_offset_guess_m,
                                   time.perf_counter() - t0)
         return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+    def forget_scan(self) -> None:
+        """Drop the kept scan of initial guesses, so the next solve of any state scans anew."""
+        self._scan = None
 
     def _scanned_guesses(self, state: TargetState, count: int) -> list[ApproachGuess]:
         """``initial_guesses`` for this scenario, computed once per target state and count (deterministic)."""

@@ -15,8 +15,9 @@ disturbance (Σ‖ω_base‖² at the via points) or peak grasp torque (a slack 
 With no stabilization cost weight the solve stops at the first iterate inside every constraint
 (:mod:`planner.phases.feasibility_stop`).
 
-The NLP is built per grasp geometry (the compound inertia depends on where the target was grasped);
-an MX graph over small SX Functions builds in about a second.
+The NLP is built once per scenario: where the target was grasped (the compound's last-link inertia, the
+wrench's lever arms) enters as parameters (:mod:`planner.compound`), so every grasp, at any free-axis
+angle, reuses it. It is an MX graph over small SX Functions.
 
 A cold solve goes coarse to fine: the same NLP on ``coarse_via_points`` via points first (a third of the
 cost per iteration), then the full NLP from that answer. Scenario II's torque limit leaves a thin feasible
@@ -35,11 +36,21 @@ from numpy.typing import NDArray
 
 from planner.bspline import UniformCubicBSpline, stabilization_vertices
 from planner.collision_callback import SceneDistanceCallback, pose_vector
-from planner.freefloating import FreeFloatingModel, base_pose_rate_sym, momentum_map, quat_to_rotation_sym
+from planner.compiled import compiled
+from planner.compound import GEOMETRY_SIZE, GraspGeometry, grasp_geometry
+from planner.freefloating import (
+    FreeFloatingModel,
+    base_pose_rate_sym,
+    base_twist_sym,
+    generalized_jacobian_sym,
+    momentum_map,
+    quat_to_rotation_sym,
+    rk4_step_function,
+)
 from planner.phases import constraint_backoff
 from planner.phases.feasibility_stop import FeasibilityStop
 from planner.phases.ipopt import ipopt_options, ipopt_solver
-from planner.robot import BodyInertia, RobotModel, fk_function
+from planner.robot import RobotModel, fk_function
 from planner.rotation import quat_to_matrix
 from planner.scenario import Scenario
 from planner.scene import TARGET_BODY, build_scene
@@ -48,10 +59,11 @@ Array = NDArray[np.float64]
 
 # CasADi's ``jac_penalty`` of the grasp-wrench Function. The NLP's constraint Jacobian pushes one forward
 # direction per decision parameter (~35) through each of its ~66 calls; CasADi instead forms the Function's
-# own Jacobian (9 outputs: a few reverse sweeps) and multiplies the seeds when jac_penalty × its 34 inputs
-# is below the number of directions, which the default (2) forbids. Same exact derivative, fewer sweeps:
-# measured on scenario II, the constraint Jacobian 0.29 s → 0.16 s.
-JACOBIAN_FIRST_PENALTY = 0.5
+# own Jacobian (a few reverse sweeps) and multiplies the seeds when jac_penalty × its 69 inputs (34 of state,
+# 35 of grasp geometry) is below the number of directions, which the default (2) forbids. Same exact
+# derivative, fewer sweeps: measured on scenario II, interpreted, the constraint Jacobian 0.29 s → 0.16 s. (A
+# compiled wrench, planner.compiled, is always differentiated through its compiled Jacobian.)
+JACOBIAN_FIRST_PENALTY = 0.25
 
 
 @dataclass(frozen=True)
@@ -79,13 +91,6 @@ class StabilizationSolution:
     min_distance_m: float
 
 
-def compound_robot(scenario: Scenario, T_ee_target: Array) -> RobotModel:
-    """The chaser with the target rigidly attached to its end-effector."""
-    t = scenario.target
-    payload = BodyInertia(t.mass_kg, np.zeros(3), t.inertia_body_kg_m2)
-    return scenario.robot.with_payload(payload, T_ee_target)
-
-
 def grasp_momentum_world(chaser: FreeFloatingModel, compound: FreeFloatingModel, q: Array, qd: Array,
                          x_base: Array) -> Array:
     """Momentum ``[P, L_G]`` (world; N·s, N·m·s) of the compound at the grasp instant.
@@ -101,47 +106,53 @@ def grasp_momentum_world(chaser: FreeFloatingModel, compound: FreeFloatingModel,
     return np.concatenate([R @ h_base[:3], R @ h_base[3:]])
 
 
-def wrench_function(scenario: Scenario, compound: RobotModel, T_ee_target: Array) -> ca.Function:
-    """``(x_base, q, qd, qdd, h_world) -> (F_grasp (3), M_grasp (3), ω_base (3))``, all SX-exact.
+def wrench_function(robot: RobotModel) -> ca.Function:
+    """``(x_base, q, qd, qdd, h_world, geometry) -> (F_grasp, M_grasp, ω_base, R_ee, p_ee)``, all SX-exact.
 
     F, M: force (N) and moment about the grasp point (N·m) the gripper exerts on the target, in the
-    grasp frame; ω_base: chaser base angular velocity (rad/s, base frame).
+    grasp frame; ω_base: chaser base angular velocity (rad/s, base frame); R_ee, p_ee: gripper pose in the
+    world. ``geometry``: the grasp geometry (:mod:`planner.compound`), so the Function depends on the
+    chaser ``robot`` alone.
     """
-    n = compound.n_joints
+    n = robot.n_joints
     x = ca.SX.sym("x_base", 7)
     q = ca.SX.sym("q", n)
     qd = ca.SX.sym("qd", n)
     qdd = ca.SX.sym("qdd", n)
     h = ca.SX.sym("h_world", 6)
-    mm = momentum_map(compound, q)
+    geo_vec = ca.SX.sym("geometry", GEOMETRY_SIZE)
+    geo = GraspGeometry.unpack(geo_vec)
+    mm = momentum_map(geo.compound(robot), q)
     R_wb = quat_to_rotation_sym(x[3:7])
     h_base = ca.vertcat(ca.mtimes(R_wb.T, h[:3]), ca.mtimes(R_wb.T, h[3:]))
-    from planner.freefloating import base_twist_sym, generalized_jacobian_sym
-
     J_star, D = generalized_jacobian_sym(mm)
     twist_ee_base = ca.mtimes(J_star, qd) + ca.mtimes(D, h_base)
     R_ee = ca.mtimes(R_wb, mm.R_ee)
     p_ee = x[:3] + ca.mtimes(R_wb, mm.p_ee)
     v_ee = ca.mtimes(R_wb, twist_ee_base[:3])
     w_ee = ca.mtimes(R_wb, twist_ee_base[3:])
-    c = ca.DM(T_ee_target[:3, 3])
-    r_T = ca.mtimes(R_ee, c)  # grasp point → target COM, world
+    r_T = ca.mtimes(R_ee, geo.p_ee_target)  # grasp point → target COM, world
     v_T = v_ee + ca.cross(w_ee, r_T)
     state = ca.vertcat(x, q, qd)
     rate = ca.vertcat(base_pose_rate_sym(mm, x, qd, h), qd, qdd)
     a_T = ca.jtimes(v_T, state, rate)
     alpha = ca.jtimes(w_ee, state, rate)
-    t = scenario.target
-    R_T = ca.mtimes(R_ee, ca.DM(T_ee_target[:3, :3]))
-    I_w = ca.mtimes(ca.mtimes(R_T, ca.DM(t.inertia_body_kg_m2)), R_T.T)
-    F = t.mass_kg * a_T
+    R_T = ca.mtimes(R_ee, geo.R_ee_target)
+    I_w = ca.mtimes(ca.mtimes(R_T, geo.target_inertia_body_kg_m2), R_T.T)
+    F = geo.target_mass_kg * a_T
     M_com = ca.mtimes(I_w, alpha) + ca.cross(w_ee, ca.mtimes(I_w, w_ee))
     M_grasp = M_com + ca.cross(r_T, F)
     twist_base = base_twist_sym(mm, qd, h_base)
-    return ca.Function("grasp_wrench", [x, q, qd, qdd, h],
+    return ca.Function("grasp_wrench", [x, q, qd, qdd, h, geo_vec],
                        [ca.mtimes(R_ee.T, F), ca.mtimes(R_ee.T, M_grasp), twist_base[3:], R_ee, p_ee],
-                       ["x_base", "q", "qd", "qdd", "h_world"], ["F_grasp", "M_grasp", "omega_base", "R_ee", "p_ee"],
+                       ["x_base", "q", "qd", "qdd", "h_world", "geometry"],
+                       ["F_grasp", "M_grasp", "omega_base", "R_ee", "p_ee"],
                        {"jac_penalty": JACOBIAN_FIRST_PENALTY})
+
+
+def stabilization_spline(scenario: Scenario) -> UniformCubicBSpline:
+    """The joint B-spline of Eq. 24 over t_f³ (s) with the scenario's number of vertices."""
+    return UniformCubicBSpline(scenario.stabilization.n_vertices, scenario.phases.stabilization_s)
 
 
 def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float64]:
@@ -164,18 +175,16 @@ STOP_CONSTRAINT_TOL = 1e-6
 
 
 class StabilizationProblem:
-    """The stabilization NLP for one grasp geometry; solve() takes the grasp state as parameters."""
+    """The stabilization NLP of a scenario; solve() takes the grasp state and its geometry as parameters."""
 
-    def __init__(self, scenario: Scenario, T_ee_target: Array, torque_limit_nm: float | None = None) -> None:
+    def __init__(self, scenario: Scenario, torque_limit_nm: float | None = None) -> None:
         t_build = time.perf_counter()
         self.scenario = sc = scenario
-        self.T_ee_target = T_ee_target
-        self.compound = compound = compound_robot(sc, T_ee_target)
-        ff = FreeFloatingModel(compound)
-        n = compound.n_joints
+        robot = sc.robot
+        n = robot.n_joints
         st = sc.stabilization
         T = sc.phases.stabilization_s
-        self.spline = UniformCubicBSpline(st.n_vertices, T)
+        self.spline = stabilization_spline(sc)
         via_times = via_point_times(self.spline, st.via_points)
         k = len(via_times)
         self.k = k
@@ -186,10 +195,14 @@ class StabilizationProblem:
         torque_limit = sc.limits.grasp_torque_max_nm if torque_limit_nm is None else torque_limit_nm
 
         P = ca.MX.sym("P", self.n_params)
-        par = ca.MX.sym("par", 3 * n + 7 + 6)  # q_in, qd_in, qdd_in, x_base0, h_world
+        par = ca.MX.sym("par", 3 * n + 7 + 6 + GEOMETRY_SIZE)  # q_in, qd_in, qdd_in, x_base0, h_world, geometry
         q_in, qd_in, a_in = par[:n], par[n:2 * n], par[2 * n:3 * n]
         x = par[3 * n:3 * n + 7]
-        h = par[3 * n + 7:]
+        h = par[3 * n + 7:3 * n + 13]
+        geo_vec = par[3 * n + 13:]
+        geo = GraspGeometry.unpack(geo_vec)
+        geo_sym = ca.SX.sym("geometry", GEOMETRY_SIZE)
+        rk4_step = compiled(rk4_step_function(GraspGeometry.unpack(geo_sym).compound(robot), geo_sym))
         V = stabilization_vertices(self.spline, q_in, qd_in, a_in, P)
         # RK4 nodes: a uniform grid refined so that every via point is a node (steps may differ)
         nodes = np.unique(np.round(np.concatenate([np.linspace(0.0, T, st.rk4_steps + 1), via_times]), 9))
@@ -198,28 +211,27 @@ class StabilizationProblem:
         Qm, Qdm = (self.spline.evaluate(V, mids, d) for d in (0, 1))
         xs = [x]
         for i in range(len(nodes) - 1):
-            x = ff.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
-                            h, nodes[i + 1] - nodes[i])
+            x = rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
+                         h, nodes[i + 1] - nodes[i], geo_vec)
             xs.append(x)
         via_idx = [int(np.argmin(np.abs(nodes - tv))) for tv in via_times]
-        wrench = wrench_function(sc, compound, T_ee_target)
-        fk = fk_function(compound)
-        T_et = ca.DM(T_ee_target)
+        wrench = compiled(wrench_function(robot), {"jac_penalty": JACOBIAN_FIRST_PENALTY})
+        fk = fk_function(robot)
         forces, torques, omegas, poses = [], [], [], []
         for i in via_idx:
-            F, M, w_b, R_ee, p_ee = wrench(xs[i], Qn[i, :].T, Qdn[i, :].T, Qddn[i, :].T, h)
+            F, M, w_b, R_ee, p_ee = wrench(xs[i], Qn[i, :].T, Qdn[i, :].T, Qddn[i, :].T, h, geo_vec)
             forces.append(F)
             torques.append(M)
             omegas.append(w_b)
             R_wb = quat_to_rotation_sym(xs[i][3:7])
             out = fk(Qn[i, :].T)
             blocks = [pose_vector(ca.mtimes(R_wb, out[2 * b]), xs[i][:3] + ca.mtimes(R_wb, out[2 * b + 1]))
-                      for b in range(len(compound.body_names))]
-            blocks.append(pose_vector(ca.mtimes(R_ee, T_et[:3, :3]), p_ee + ca.mtimes(R_ee, T_et[:3, 3])))
+                      for b in range(len(robot.body_names))]
+            blocks.append(pose_vector(ca.mtimes(R_ee, geo.R_ee_target), p_ee + ca.mtimes(R_ee, geo.p_ee_target)))
             poses.append(ca.vertcat(*blocks))
         self.scene = build_scene(sc)
         self.distance_cb = SceneDistanceCallback("stabilization_distance", self.scene,
-                                                 [*compound.body_names, TARGET_BODY])
+                                                 [*robot.body_names, TARGET_BODY])
         dists = [self.distance_cb(pz) for pz in poses]
         q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx])
         qd_box = ca.vertcat(*[Qdn[i, :].T for i in via_idx])
@@ -235,11 +247,11 @@ class StabilizationProblem:
         tl = torque_limit if np.isfinite(torque_limit) else np.inf
         fl = sc.limits.grasp_force_max_n if np.isfinite(sc.limits.grasp_force_max_n) else np.inf
         bo = constraint_backoff
-        qd_lim = bo.JOINT_VELOCITY_FRACTION * compound.qd_max
+        qd_lim = bo.JOINT_VELOCITY_FRACTION * robot.qd_max
         tl, fl = bo.WRENCH_FRACTION * tl, bo.WRENCH_FRACTION * fl
-        lbg = [np.tile(compound.q_min + bo.JOINT_POSITION_RAD, k), np.tile(-qd_lim, k),
+        lbg = [np.tile(robot.q_min + bo.JOINT_POSITION_RAD, k), np.tile(-qd_lim, k),
                np.full(k * n_d, margin + bo.COLLISION_M), np.full(3 * k, -tl), np.full(3 * k, -fl)]
-        ubg = [np.tile(compound.q_max - bo.JOINT_POSITION_RAD, k), np.tile(qd_lim, k), np.full(k * n_d, np.inf),
+        ubg = [np.tile(robot.q_max - bo.JOINT_POSITION_RAD, k), np.tile(qd_lim, k), np.full(k * n_d, np.inf),
                np.full(3 * k, tl), np.full(3 * k, fl)]
         if c.peak_wrench > 0:
             s = ca.MX.sym("s_torque")
@@ -275,7 +287,7 @@ class StabilizationProblem:
         (each joint moves q̇_in·T_d/2 while decelerating); the NLP then reshapes the profile.
         """
         T = self.spline.duration_s
-        rob = self.compound
+        rob = self.scenario.robot
         room = np.where(grasp.qd > 0, rob.q_max - grasp.q, grasp.q - rob.q_min)
         with np.errstate(divide="ignore"):
             limits = np.where(np.abs(grasp.qd) > 1e-9, 2 * 0.8 * np.maximum(room, 0.0) / np.abs(grasp.qd), np.inf)
@@ -327,13 +339,17 @@ class StabilizationProblem:
         if self._coarse is None:
             st = replace(self.scenario.stabilization, via_points=self.coarse_via_points,
                          rk4_steps=self.coarse_via_points, coarse_via_points=0)
-            self._coarse = StabilizationProblem(replace(self.scenario, stabilization=st), self.T_ee_target,
-                                                self.torque_limit_nm)
+            self._coarse = StabilizationProblem(replace(self.scenario, stabilization=st), self.torque_limit_nm)
         return self._coarse
+
+    def parameters(self, grasp: GraspState) -> Array:
+        """The NLP's parameter vector for ``grasp``: its state, momentum and geometry."""
+        return np.concatenate([grasp.q, grasp.qd, grasp.qdd, grasp.x_base, grasp.h_world,
+                               grasp_geometry(self.scenario, grasp.T_ee_target)])
 
     def _solve(self, grasp: GraspState, warm_params: Array | None,
                max_iterations: int | None = None) -> StabilizationSolution:
-        par = np.concatenate([grasp.q, grasp.qd, grasp.qdd, grasp.x_base, grasp.h_world])
+        par = self.parameters(grasp)
         w0 = self.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
         if self.n_extra:
             M0, _, _ = self.outputs(w0, par)
