@@ -149,17 +149,19 @@ def base_pose_rate_sym(mm: MomentumMap, x_base, qd, h_world):  # noqa: ANN001, A
 
 @dataclass
 class FreeFloatingModel:
-    """Compiled CasADi Functions of the free-floating robot, built once per robot model.
+    """CasADi Functions of the free-floating robot, built once per robot model.
 
     * ``momentum(q) -> (A_b 6×6, A_m 6×n, r_g)`` base frame
     * ``base_twist(q, qd, h_base) -> twist_base (6)``
     * ``gen_jacobian(q) -> (J_star 6×n, D 6×6, R_ee, p_ee)`` base frame
     * ``rk4_step(x, q0, qd0, qm, qdm, q1, qd1, h_world, dt) -> x_next`` (quaternion renormalised)
-    Call them with numpy for numeric use or with SX/MX inside an NLP.
+    Call them with numpy for numeric use or with SX/MX inside an NLP. ``compile_rk4``: ``rk4_step`` compiled to
+    C (:mod:`planner.compiled`), for a model whose RK4 steps an NLP differentiates (the chaser's, in a Planner);
+    off for the models made per grasp, which would each compile a library.
     """
 
     robot: RobotModel
-    compile_rk4: bool = False  # rk4_step compiled to C (planner.compiled): for the NLPs of a Planner
+    compile_rk4: bool = False
     momentum: ca.Function = field(init=False)
     base_twist: ca.Function = field(init=False)
     gen_jacobian: ca.Function = field(init=False)

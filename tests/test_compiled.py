@@ -67,13 +67,12 @@ def test_a_cached_library_is_loaded_without_compiling_again(cache, monkeypatch):
     def no_compiler(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
         raise AssertionError("compiled again")
 
-    monkeypatch.setattr(subprocess, "run", no_compiler)
-    g = compiled(_function())
+    with monkeypatch.context() as patch:
+        patch.setattr(subprocess, "run", no_compiler)
+        g = compiled(_function())
     assert g.is_a("External") and library.stat().st_mtime_ns == stamp
     assert compiled_module.fallback_reasons == []
-    # another formula under the same name is another source, hence another library
-    monkeypatch.undo()
-    monkeypatch.setenv("LUTGEN_CACHE_DIR", str(cache))
+    # another formula under the same name is another expression graph, hence another library
     compiled(_function(scale=2.0))
     assert len(list(cache.glob("toy-*.so"))) == 2
 
@@ -100,14 +99,14 @@ def test_compilation_can_be_switched_off(cache, monkeypatch):
     assert not cache.exists()
 
 
-def test_a_library_that_disagrees_with_the_function_is_not_used(cache):
+def test_a_library_that_disagrees_with_the_function_is_not_used(cache, monkeypatch):
     compiled(_function())
     library = next(cache.glob("toy-*.so"))
     # put another formula's library (same name and signature) where this one's is cached
     impostor_cache = cache.parent / "impostor"
-    os.environ["LUTGEN_CACHE_DIR"] = str(impostor_cache)
+    monkeypatch.setenv("LUTGEN_CACHE_DIR", str(impostor_cache))
     compiled(_function(scale=3.0))
-    os.environ["LUTGEN_CACHE_DIR"] = str(cache)
+    monkeypatch.setenv("LUTGEN_CACHE_DIR", str(cache))
     library.write_bytes(next(impostor_cache.glob("toy-*.so")).read_bytes())
     f = _function()
     with pytest.warns(RuntimeWarning, match="disagrees with the interpreted Function"):
