@@ -15,7 +15,7 @@ import pytest
 import planner.phases.approach as approach_module
 from planner.phases.approach_guess import initial_guesses
 from planner.phases.stabilization import StabilizationSolution
-from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner
+from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
 from planner.scenario import load_scenario
 
 SCENARIO_II = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "scenario_II.toml"
@@ -49,6 +49,10 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
     scans = []
     monkeypatch.setattr(approach_module, "initial_guesses", lambda *a: scans.append(a) or initial_guesses(*a))
+    solves = []  # (iteration budget, solution) of every approach solve
+    solve = planner.approach.solve
+    monkeypatch.setattr(planner.approach, "solve",
+                        lambda *a, **k: solves.append((k.get("max_iterations"), solve(*a, **k))) or solves[-1][1])
     plan = planner.plan(sc.target_state.as_state())
     assert len(scans) == 1  # the retry starts from the same scan's next guess, not a new scan
     assert calls[0][:2] == (0, STABILIZATION_BUDGET)  # the first grasp, under the budget: another remains
@@ -59,6 +63,8 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     assert plan.stabilization.status == "stand-in ok" and plan.approach.start_guess == calls[1][0]
     assert plan.t_grasp == pytest.approx(calls[1][2])  # the plan is assembled from the grasp that succeeded
     assert any("trying the approach's next guess" in note for note in plan.notes)
+    # the first approach is unbudgeted; the retry's gets a budget scaled from the first one's iterations
+    assert solves[0][0] is None and solves[1][0] == approach_retry_budget(solves[0][1].iterations)
     # the scan is kept for one plan's retries only: planning the state again scans again, as a new state would
     planner.plan(sc.target_state.as_state())
     assert len(scans) == 2

@@ -30,6 +30,7 @@ from planner.costs import manipulability_sym
 from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
 from planner.phases import constraint_backoff
 from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, ApproachGuess, initial_guesses
+from planner.phases.feasibility_stop import FeasibilityStop
 from planner.phases.ipopt import ipopt_options, ipopt_solver
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m
 from planner.robot import fk_function
@@ -276,7 +277,11 @@ class ApproachProblem:
         self.ubw = np.concatenate([np.full(self.n_params, np.inf), [bx[1], bz[1], sc.phases.max_start_delay_s],
                                    np.tile(rob.q_max, n_tr), ubw_extra])
         self._nlp = {"x": ca.vertcat(w, *extra_w), "p": p, "f": cost, "g": ca.vertcat(*g_parts)}
-        self._options = ipopt_options(sc.solver)
+        # an optional iteration budget per solve (the planner gives its retries from later guesses one); the
+        # callback only counts, it never changes an iterate
+        self.budget = FeasibilityStop("approach_budget", self.n_w + self.n_extra, len(self.lbg), 7, slice(0, 0), 0.0,
+                                      0.0)
+        self._options = ipopt_options(sc.solver) | {"iteration_callback": self.budget}
         self.solver = ipopt_solver("approach", self._nlp, self._options)
         self._cold_solver: ca.Function | None = None
         # the last scan of initial guesses, keyed by target state and count: a plan that retries from the
@@ -306,7 +311,7 @@ class ApproachProblem:
 
     def solve(self, state: TargetState, warm_start: ApproachSolution | None = None,
               max_starts: int = 3, tracking_speed_scale: float | None = None,
-              skip_guesses: int = 0) -> ApproachSolution:
+              skip_guesses: int = 0, max_iterations: int | None = None) -> ApproachSolution:
         """Solve for one observed target state.
 
         With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if
@@ -314,6 +319,10 @@ class ApproachProblem:
         first ``skip_guesses`` of them (the planner's next grasp when a stabilization failed), and returns
         the first success (or the last attempt, with its failure status; its ``start_guess`` says which
         guess). ``tracking_speed_scale`` scales the tracking-node rate bounds (kept for later solves).
+        ``max_iterations`` (None: only the scenario's per-NLP ``max_iter``) bounds the IPOPT iterations of all
+        the starts together; a solve that spends it ends unsuccessful, status ``Iteration_Budget_Exhausted``.
+        (The budget counts IPOPT's iteration callbacks; a cold start, in the restoration phase, calls back once
+        more than its reported iteration count.)
         """
         if tracking_speed_scale is not None:
             self.tracking_speed_scale = tracking_speed_scale
@@ -340,11 +349,14 @@ class ApproachProblem:
                            for g in self._scanned_guesses(state, max_starts)[skip_guesses:]]
             if attempt >= len(starts) or (attempt > 0 and time.perf_counter() - t0 > self.scenario.solver.max_wall_s):
                 break
-            result = self._solve_once(state, starts[attempt], cold=attempt >= n_warm)
+            left = None if max_iterations is None else max_iterations - iterations
+            if left is not None and left <= 0:
+                break
+            result = self._solve_once(state, starts[attempt], cold=attempt >= n_warm, max_iterations=left)
             if attempt >= n_warm:
                 result = replace(result, start_guess=skip_guesses + attempt - n_warm)
             iterations += result.iterations
-            if result.success:
+            if result.success or self.budget.budget_exhausted:
                 break
         if result is None:
             return self._no_start("no scanned initial guess left to start from", self.scenario.base_offset_guess_m,
@@ -405,7 +417,8 @@ class ApproachProblem:
         return self._cold_solver
 
     def _solve_once(self, state: TargetState, w0: Array, lbw: Array | None = None,
-                    ubw: Array | None = None, cold: bool = False) -> ApproachSolution:
+                    ubw: Array | None = None, cold: bool = False,
+                    max_iterations: int | None = None) -> ApproachSolution:
         p = np.concatenate([state.attitude_wxyz, state.omega_body_rad_s])
         lbw = self.lbw if lbw is None else lbw
         ubw = self.ubw if ubw is None else ubw
@@ -417,6 +430,7 @@ class ApproachProblem:
         lbg[self._rate_slice] *= self.tracking_speed_scale
         ubg[self._rate_slice] *= self.tracking_speed_scale
         solver = self.cold_solver if cold else self.solver
+        self.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations)
         sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
         elapsed = time.perf_counter() - t0
         stats = solver.stats()
@@ -428,8 +442,8 @@ class ApproachProblem:
             base_offset_m=wopt[self.n_params: self.n_params + 2],
             start_delay_s=float(wopt[self.i_tau]),
             q_tracking=wopt[self.i_tr: self.n_w].reshape(len(TRACKING_NODES), -1),
-            success=bool(stats["success"]),
-            status=str(stats["return_status"]),
+            success=bool(stats["success"]) and not self.budget.budget_exhausted,
+            status="Iteration_Budget_Exhausted" if self.budget.budget_exhausted else str(stats["return_status"]),
             iterations=int(stats["iter_count"]),
             solve_time_s=elapsed,
             cost=float(sol["f"]),
