@@ -86,6 +86,7 @@ def test_constraint_jacobian_matches_central_differences(problem, grasp):
 def test_coarse_problem_is_the_same_nlp_on_fewer_via_points(problem, scenario_II):
     coarse = problem.coarse_problem()
     assert coarse is problem.coarse_problem()  # built once
+    assert coarse.functions is problem.functions  # the robot's inner Functions are built and loaded once
     assert coarse.coarse_via_points == 0  # no coarse problem of its own
     assert coarse.n_params == problem.n_params
     assert scenario_II.stabilization.coarse_via_points < coarse.k < problem.k  # knots are always via points

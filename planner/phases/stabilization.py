@@ -174,10 +174,29 @@ def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float
 STOP_CONSTRAINT_TOL = 1e-6
 
 
+@dataclass(frozen=True)
+class InnerFunctions:
+    """The SX Functions the stabilization NLP calls at every RK4 node and via point; they depend on the robot
+    alone (grasp geometry is an input), so the coarse and the full NLP share one set."""
+
+    rk4_step: ca.Function  # rk4_step_function of the compound, geometry as last input (compiled)
+    wrench: ca.Function  # wrench_function (compiled)
+    fk: ca.Function  # fk_function
+
+    @staticmethod
+    def of(robot: RobotModel) -> InnerFunctions:
+        """Build them, the RK4 step and the wrench compiled to C (:mod:`planner.compiled`)."""
+        geometry = ca.SX.sym("geometry", GEOMETRY_SIZE)
+        return InnerFunctions(compiled(rk4_step_function(GraspGeometry.unpack(geometry).compound(robot), geometry)),
+                              compiled(wrench_function(robot), {"jac_penalty": JACOBIAN_FIRST_PENALTY}),
+                              fk_function(robot))
+
+
 class StabilizationProblem:
     """The stabilization NLP of a scenario; solve() takes the grasp state and its geometry as parameters."""
 
-    def __init__(self, scenario: Scenario, torque_limit_nm: float | None = None) -> None:
+    def __init__(self, scenario: Scenario, torque_limit_nm: float | None = None,
+                 functions: InnerFunctions | None = None) -> None:
         t_build = time.perf_counter()
         self.scenario = sc = scenario
         robot = sc.robot
@@ -201,8 +220,7 @@ class StabilizationProblem:
         h = par[3 * n + 7:3 * n + 13]
         geo_vec = par[3 * n + 13:]
         geo = GraspGeometry.unpack(geo_vec)
-        geo_sym = ca.SX.sym("geometry", GEOMETRY_SIZE)
-        rk4_step = compiled(rk4_step_function(GraspGeometry.unpack(geo_sym).compound(robot), geo_sym))
+        self.functions = fn = functions or InnerFunctions.of(robot)
         V = stabilization_vertices(self.spline, q_in, qd_in, a_in, P)
         # RK4 nodes: a uniform grid refined so that every via point is a node (steps may differ)
         nodes = np.unique(np.round(np.concatenate([np.linspace(0.0, T, st.rk4_steps + 1), via_times]), 9))
@@ -211,20 +229,18 @@ class StabilizationProblem:
         Qm, Qdm = (self.spline.evaluate(V, mids, d) for d in (0, 1))
         xs = [x]
         for i in range(len(nodes) - 1):
-            x = rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
+            x = fn.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
                          h, nodes[i + 1] - nodes[i], geo_vec)
             xs.append(x)
         via_idx = [int(np.argmin(np.abs(nodes - tv))) for tv in via_times]
-        wrench = compiled(wrench_function(robot), {"jac_penalty": JACOBIAN_FIRST_PENALTY})
-        fk = fk_function(robot)
         forces, torques, omegas, poses = [], [], [], []
         for i in via_idx:
-            F, M, w_b, R_ee, p_ee = wrench(xs[i], Qn[i, :].T, Qdn[i, :].T, Qddn[i, :].T, h, geo_vec)
+            F, M, w_b, R_ee, p_ee = fn.wrench(xs[i], Qn[i, :].T, Qdn[i, :].T, Qddn[i, :].T, h, geo_vec)
             forces.append(F)
             torques.append(M)
             omegas.append(w_b)
             R_wb = quat_to_rotation_sym(xs[i][3:7])
-            out = fk(Qn[i, :].T)
+            out = fn.fk(Qn[i, :].T)
             blocks = [pose_vector(ca.mtimes(R_wb, out[2 * b]), xs[i][:3] + ca.mtimes(R_wb, out[2 * b + 1]))
                       for b in range(len(robot.body_names))]
             blocks.append(pose_vector(ca.mtimes(R_ee, geo.R_ee_target), p_ee + ca.mtimes(R_ee, geo.p_ee_target)))
@@ -339,7 +355,8 @@ class StabilizationProblem:
         if self._coarse is None:
             st = replace(self.scenario.stabilization, via_points=self.coarse_via_points,
                          rk4_steps=self.coarse_via_points, coarse_via_points=0)
-            self._coarse = StabilizationProblem(replace(self.scenario, stabilization=st), self.torque_limit_nm)
+            self._coarse = StabilizationProblem(replace(self.scenario, stabilization=st), self.torque_limit_nm,
+                                                self.functions)
         return self._coarse
 
     def parameters(self, grasp: GraspState) -> Array:
