@@ -7,42 +7,22 @@ of body pairs. :meth:`CollisionScene.distances` returns, per pair, the signed di
 body B by ``+ε n`` (or body A by ``-ε n``) increases the distance by ``ε`` to first order.
 :func:`distance_gradient` turns that into ``∂d/∂x`` for any coordinates ``x`` (TrajOpt style).
 
-Implementation: sphere-swept cores
-----------------------------------
-Every shape is handled as a *core* swept by a sphere: a box is its own core with radius 0, a capsule is
-its segment (a python-fcl ``Capsule(0, length)``) with radius ``radius_m``. For convex sets the signed
-distance of ``A ⊕ ball(r_a)`` and ``B ⊕ ball(r_b)`` is exactly ``sd(A, B) - r_a - r_b``, with the same
-normal, and the witness points move by ``+r_a n`` / ``-r_b n``. We ask fcl only for the core distance
-(``fcl.distance`` with ``enable_signed_distance=True``) and add the radii analytically. Why: fcl's signed
-path runs GJK/EPA (libccd) on the real shapes, which converges slowly on curved surfaces. Measured on
-2000 random seeded capsule pairs (python-fcl 0.7.0.11), full capsules in the signed path were off by up
-to 1e-3 m when *separated* (99th percentile 3e-5 m) and up to 1e-6 m (median 3e-7 m) when penetrating
-(EPA); box–capsule up to 2e-4 m separated and 1e-6 m penetrating. The cores are polytopes (boxes,
-segments), on which GJK terminates exactly and EPA finds the exact face: on the same samples the core
-formulation agrees with the analytic references to ~5e-16 m, separated or penetrating, and the gradient
-test can use one tight tolerance for both. (fcl's *unsigned* path has an exact capsule–capsule routine,
-but it reports -1 for any penetrating pair involving a box, so one signed request for everything is
-simpler.)
+Engine: coal
+------------
+Distances come from ``coal`` (the maintained successor of FCL, shipped with ``pin``) on the true shapes:
+its capsule–capsule routine is closed form, and its GJK/EPA treats a capsule as a swept segment, so
+box–capsule and box–box run on polytopes, where GJK terminates exactly and EPA finds the exact face.
+python-fcl's signed path is not used: it overstates distances in aligned poses (by up to 1.9 m on
+box–capsule). How the engine is held to the truth: ``tests/test_distance_truth.py`` compares it with an
+exact oracle and with :mod:`planner.distance_closed_form` (verify's engine, which shares no code with this
+one) on seeded adversarial pairs, aligned and touching poses included.
 
 Degenerate normal
 -----------------
-When the two core witness points coincide (``‖c_a - c_b‖ < 1e-9 m``: touching cores, or two segments that
-cross, where the distance of the cores is 0 and the capsules penetrate by ``r_a + r_b``), the direction
-cannot be read from the points. We then translate B's core by a small probe ``h = 1e-5 m`` along a
-candidate direction (first the shape-centre difference ``centre_b - centre_a``, then the world axes) and
-take the normal from fcl's witness points at the probed pose, as soon as they are ``> 1e-9 m`` apart.
-Cores are polytopes, so in the generic degenerate case (face or edge contact, crossing segments) the
-normal at the probed pose is the exact one-sided normal on the side the probe moved B to; the distance
-and witness points reported are still those of the true pose. For touching cores the centre difference
-always has a non-negative component along the outward normal, so the probe separates them and the normal
-points the way that pushes the bodies apart. For crossing segments both centres lie in the plane of the
-segments, the centre-difference probe slides along the contact, and the first world axis not in that
-plane decides the side: ``d = |n·δ| - r_a - r_b`` under a translation ``δ`` of B is not differentiable
-there, and either ``±n`` is a valid one-sided gradient.
-
-fcl conventions relied upon (python-fcl 0.7, checked by the tests): ``Capsule(radius, lz)`` is centred
-with its axis on z, ``Box(x, y, z)`` takes full side lengths, ``DistanceResult.nearest_points`` are in the
-world frame, and the result is only overwritten by a smaller distance (so it is reset before reuse).
+When coal cannot give a direction (crossing capsule segments, where the depth is ``r_a + r_b`` and any
+normal of the two segments' plane is a valid one-sided gradient), B is probed by a small translation
+``h = 1e-5 m`` along the centre difference, then the world axes, and the normal is read at the probed pose;
+the distance and witness points reported are still those of the true pose.
 """
 
 from __future__ import annotations
@@ -51,25 +31,35 @@ import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
-import fcl
+import coal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planner.geometry import Box, Capsule, PlacedShape
 
-# Below this core witness-point separation (m) the normal is taken from a probe (see module docstring).
+# Below this witness-point separation (m) with no normal from coal, the normal is taken from a probe.
 _DEGENERATE_TOL_M = 1e-9
-# Probe translation (m) of B's core in the degenerate case: large enough that the probed witness points are
-# far above _DEGENERATE_TOL_M for any probe direction not nearly tangent (|u·n| > 1e-4), small against shapes.
+# Probe translation (m) of B in the degenerate case: far above _DEGENERATE_TOL_M, small against shapes.
 _PROBE_STEP_M = 1e-5
+# GJK/EPA stop tolerance (m): well below the 1e-6 m the distances are held to.
+_GJK_TOLERANCE_M = 1e-10
 
 
 @dataclass(frozen=True)
 class CollisionBody:
-    """A rigid body of the collision model: shapes placed in the body frame (``T_body_shape``, m)."""
+    """A rigid body of the collision model: shapes placed in the body frame (``T_body_shape``, m).
+
+    ``frame`` names the pose the body moves with (default: its own name); e.g. the target's grasp handle is
+    a body of its own, so that pairs can treat it apart, that moves with the target's frame.
+    """
 
     name: str
     shapes: tuple[PlacedShape, ...]
+    frame: str | None = None
+
+    @property
+    def frame_name(self) -> str:
+        return self.frame or self.name
 
 
 @dataclass(frozen=True)
@@ -88,13 +78,12 @@ class PairDistance:
 
 
 @dataclass(frozen=True)
-class _Core:
-    """One shape as fcl sees it: a polytope core (box or segment) plus a sweep radius (m)."""
+class _Placed:
+    """One shape as coal sees it; its transform is rewritten on every sweep."""
 
     body: str
     name: str
-    obj: fcl.CollisionObject  # the core; its transform is rewritten on every distances() call
-    radius_m: float
+    obj: coal.CollisionObject
     T_body_shape: NDArray[np.float64]
     at_body_origin: bool  # T_body_shape is the identity: skip the product per call
 
@@ -128,18 +117,13 @@ def distance_gradient(pd: PairDistance, J_point_a: ArrayLike, J_point_b: ArrayLi
 class CollisionScene:
     """Bodies of boxes and capsules and the body pairs whose signed distance is queried.
 
-    The fcl objects are built once here; :meth:`distances` only sets transforms and calls ``fcl.distance``.
+    The coal objects are built once here; :meth:`distances` only sets transforms and calls ``coal.distance``.
     """
 
     distance_gradient = staticmethod(distance_gradient)
 
-    def __init__(
-        self,
-        bodies: Sequence[CollisionBody],
-        pairs: Sequence[tuple[str, str]],
-        scale: float | Mapping[str, float] = 1.0,
-        excluded_shapes: Mapping[tuple[str, str], Collection[str]] | None = None,
-    ) -> None:
+    def __init__(self, bodies: Sequence[CollisionBody], pairs: Sequence[tuple[str, str]],
+                 scale: float | Mapping[str, float] = 1.0) -> None:
         """Build the scene.
 
         Args:
@@ -148,81 +132,41 @@ class CollisionScene:
             scale: overscaling factor of shape *dimensions* (paper §5: the robot geometric model was
                 scaled), one for all bodies or per body name (bodies not named keep 1.0). Box sides and
                 capsule radius and length are multiplied; shape positions in their body are not.
-            excluded_shapes: per pair ``(A, B)``, names of B's shapes ignored for that pair only (e.g. the
-                target's grasp handle, which only the gripper is allowed to touch).
 
         Raises:
             ValueError: unknown body or shape names, duplicate names or pairs, a pair of a body with
-                itself, a non-positive scale, or a pair whose shapes are all excluded.
+                itself, a non-positive scale, a body without shapes.
         """
+        self._bodies = {b.name: b for b in bodies}
         self._body_names: tuple[str, ...] = tuple(b.name for b in bodies)
-        if len(set(self._body_names)) != len(self._body_names):
+        if len(self._bodies) != len(self._body_names):
             raise ValueError(f"duplicate body names in {self._body_names}")
-        body_by_name = {b.name: b for b in bodies}
+        if isinstance(scale, Mapping) and set(scale) - set(self._body_names):
+            raise ValueError(f"scale given for unknown bodies {sorted(set(scale) - set(self._body_names))}")
+        self._request = coal.DistanceRequest()
+        self._request.enable_signed_distance = True
+        self._request.gjk_tolerance = self._request.epa_tolerance = _GJK_TOLERANCE_M
+        self._result = coal.DistanceResult()
+        self._placed: dict[str, list[_Placed]] = {
+            b.name: self._place_body(b, self._scale_of(scale, b.name)) for b in bodies}
+        self._pairs = self._checked_pairs(pairs)
+        self._pair_shapes = [[(sa, sb) for sa in self._placed[a] for sb in self._placed[b]] for a, b in self._pairs]
+        in_pairs = {name for pair in self._pairs for name in pair}
+        self._used_bodies: tuple[str, ...] = tuple(n for n in self._body_names if n in in_pairs)
 
-        scales = {name: self._scale_of(scale, name) for name in self._body_names}
-        if isinstance(scale, Mapping):
-            unknown = set(scale) - set(self._body_names)
-            if unknown:
-                raise ValueError(f"scale given for unknown bodies {sorted(unknown)}")
-
-        self._request = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
-        self._result = fcl.DistanceResult()
-        self._cores: list[_Core] = []
-        self._core_ids: dict[str, list[int]] = {}
-        for body in bodies:
-            names = [s.name for s in body.shapes]
-            if not names:
-                raise ValueError(f"body {body.name!r} has no shapes")
-            if len(set(names)) != len(names):
-                raise ValueError(f"body {body.name!r}: duplicate shape names {names}")
-            ids = []
-            for placed in body.shapes:
-                ids.append(len(self._cores))
-                self._cores.append(self._make_core(body.name, placed, scales[body.name]))
-            self._core_ids[body.name] = ids
-
-        excluded = dict(excluded_shapes or {})
-        self._pairs: tuple[tuple[str, str], ...] = tuple((str(a), str(b)) for a, b in pairs)
+    def _checked_pairs(self, pairs: Sequence[tuple[str, str]]) -> tuple[tuple[str, str], ...]:
+        out = tuple((str(a), str(b)) for a, b in pairs)
         seen: set[frozenset[str]] = set()
-        for a, b in self._pairs:
+        for a, b in out:
             for name in (a, b):
-                if name not in body_by_name:
+                if name not in self._bodies:
                     raise ValueError(f"pair ({a!r}, {b!r}): unknown body {name!r}")
             if a == b:
                 raise ValueError(f"pair ({a!r}, {b!r}) pairs a body with itself")
-            key = frozenset((a, b))
-            if key in seen:
+            if frozenset((a, b)) in seen:
                 raise ValueError(f"pair ({a!r}, {b!r}) is listed twice")
-            seen.add(key)
-        unknown_pairs = set(excluded) - set(self._pairs)
-        if unknown_pairs:
-            raise ValueError(f"excluded_shapes given for pairs not in the scene: {sorted(unknown_pairs)}")
-
-        # Per pair: the (core of A, core of B, r_a + r_b) combinations to evaluate, fixed once here.
-        self._pair_cores: list[list[tuple[int, int]]] = []
-        for a, b in self._pairs:
-            skip = set(excluded.get((a, b), ()))
-            b_names = {self._cores[j].name for j in self._core_ids[b]}
-            if skip - b_names:
-                missing = sorted(skip - b_names)
-                raise ValueError(f"pair ({a!r}, {b!r}): excluded shapes {missing} are not shapes of {b!r}")
-            combos = [(i, j) for i in self._core_ids[a] for j in self._core_ids[b]
-                      if self._cores[j].name not in skip]
-            if not combos:
-                raise ValueError(f"pair ({a!r}, {b!r}): every shape of {b!r} is excluded")
-            self._pair_cores.append(combos)
-        self._pair_combos = [
-            [(i, j, self._cores[i].obj, self._cores[j].obj, self._cores[i].radius_m + self._cores[j].radius_m)
-             for i, j in combos]
-            for combos in self._pair_cores
-        ]
-
-        # Only bodies that appear in some pair need a pose per call.
-        in_pairs = {name for pair in self._pairs for name in pair}
-        self._used_bodies: tuple[str, ...] = tuple(n for n in self._body_names if n in in_pairs)
-        self._T_world_core: list[NDArray[np.float64] | None] = [None] * len(self._cores)
-        self._radii = np.array([c.radius_m for c in self._cores])
+            seen.add(frozenset((a, b)))
+        return out
 
     @staticmethod
     def _scale_of(scale: float | Mapping[str, float], body: str) -> float:
@@ -232,21 +176,27 @@ class CollisionScene:
         return s
 
     @staticmethod
-    def _make_core(body: str, placed: PlacedShape, scale: float) -> _Core:
+    def _place_body(body: CollisionBody, scale: float) -> list[_Placed]:
+        names = [s.name for s in body.shapes]
+        if not names:
+            raise ValueError(f"body {body.name!r} has no shapes")
+        if len(set(names)) != len(names):
+            raise ValueError(f"body {body.name!r}: duplicate shape names {names}")
+        return [CollisionScene._place(body.name, placed, scale) for placed in body.shapes]
+
+    @staticmethod
+    def _place(body: str, placed: PlacedShape, scale: float) -> _Placed:
         shape = placed.shape.scaled(scale)
         if isinstance(shape, Box):
-            geom, radius = fcl.Box(*shape.size_m), 0.0
+            geom = coal.Box(*shape.size_m)
         elif isinstance(shape, Capsule):
-            # Radius-0 capsule = the segment along z from -length/2 to +length/2 (fcl's centred convention).
-            geom, radius = fcl.Capsule(0.0, shape.length_m), float(shape.radius_m)
+            geom = coal.Capsule(shape.radius_m, shape.length_m)  # centred, axis z: the convention of geometry
         else:
-            kind = type(shape).__name__
-            raise ValueError(f"body {body!r} shape {placed.name!r}: unsupported shape type {kind}")
+            raise ValueError(f"body {body!r} shape {placed.name!r}: unsupported shape type {type(shape).__name__}")
         T = np.array(placed.T_body_shape, dtype=float)
         if T.shape != (4, 4):
             raise ValueError(f"body {body!r} shape {placed.name!r}: T_body_shape must be 4×4, got {T.shape}")
-        obj = fcl.CollisionObject(geom, fcl.Transform())
-        return _Core(body, placed.name, obj, radius, T, bool(np.array_equal(T, np.eye(4))))
+        return _Placed(body, placed.name, coal.CollisionObject(geom), T, bool(np.array_equal(T, np.eye(4))))
 
     @property
     def pairs(self) -> tuple[tuple[str, str], ...]:
@@ -258,151 +208,108 @@ class CollisionScene:
         """Names of all bodies, in construction order."""
         return self._body_names
 
-    def distances(self, T_world_body: Mapping[str, ArrayLike]) -> list[PairDistance]:
-        """Signed distance of every pair at the given body poses (4×4, world frame, m).
+    def frame_of(self, body: str) -> str:
+        """The pose a body moves with (see :class:`CollisionBody`)."""
+        return self._bodies[body].frame_name
 
-        A body with several shapes contributes the minimum over its shape pairs. Only the bodies of some
-        pair need a pose; extra entries are ignored.
+    def distances(self, T_world_frame: Mapping[str, ArrayLike]) -> list[PairDistance]:
+        """Signed distance of every pair at the given poses (4×4, world frame, m), keyed by frame name.
+
+        A body with several shapes contributes the minimum over its shape pairs. Only the frames of the
+        bodies of some pair are needed; extra entries are ignored.
 
         Raises:
             KeyError: a body of some pair has no pose.
         """
-        d, PA, PB, N, best_ids = self._sweep(T_world_body)
-        cores = self._cores
-        return [
-            PairDistance(
-                pair=pair,
-                distance_m=float(d[k]),
-                p_world_a=PA[k],
-                p_world_b=PB[k],
-                normal_world=N[k],
-                shape_pair=(cores[i].name, cores[j].name),
-            )
-            for k, (pair, (i, j)) in enumerate(zip(self._pairs, best_ids, strict=True))
-        ]
+        d, PA, PB, N, best = self._sweep(T_world_frame)
+        return [PairDistance(pair, float(d[k]), PA[k], PB[k], N[k], (sa.name, sb.name))
+                for k, (pair, (sa, sb)) in enumerate(zip(self._pairs, best, strict=True))]
 
-    def distance_arrays(self, T_world_body: Mapping[str, ArrayLike]) -> tuple[NDArray[np.float64], ...]:
+    def distance_arrays(self, T_world_frame: Mapping[str, ArrayLike]) -> tuple[NDArray[np.float64], ...]:
         """:meth:`distances` as arrays, one row per pair: distances (m), witness points on A and on B, unit
         normals (world). For the NLPs' callbacks, which need no per-pair objects."""
-        return self._sweep(T_world_body)[:4]
+        return self._sweep(T_world_frame)[:4]
 
-    def _sweep(self, T_world_body: Mapping[str, ArrayLike]) -> tuple:
-        """``(d, PA, PB, N, best_ids)``: what :meth:`distances` reports, and the core pair realising each."""
-        cores = self._cores
+    def _set_poses(self, T_world_frame: Mapping[str, ArrayLike]) -> None:
         for name in self._used_bodies:
+            frame = self.frame_of(name)
             try:
-                T_wb = np.asarray(T_world_body[name], dtype=float)
+                T_wb = np.asarray(T_world_frame[frame], dtype=float)
             except KeyError:
-                raise KeyError(f"no pose given for collision body {name!r}") from None
-            for i in self._core_ids[name]:
-                core = cores[i]
-                T = T_wb if core.at_body_origin else T_wb @ core.T_body_shape
-                self._T_world_core[i] = T
-                # Two setters: ~2× cheaper than building an fcl.Transform for setTransform.
-                core.obj.setRotation(T[:3, :3])
-                core.obj.setTranslation(T[:3, 3])
+                raise KeyError(f"no pose given for collision body {name!r} (frame {frame!r})") from None
+            for placed in self._placed[name]:
+                T = T_wb if placed.at_body_origin else T_wb @ placed.T_body_shape
+                placed.obj.setRotation(T[:3, :3])  # two setters: ~3× cheaper than a Transform3s
+                placed.obj.setTranslation(T[:3, 3])
 
-        # Hot loop (≈ 600 sweeps per NLP evaluation): locals, no per-combo allocation beyond fcl's own; the
-        # normals and witness offsets are then computed for all pairs at once (a small numpy op costs ~1 µs).
-        res, req, fcl_distance, inf = self._result, self._request, fcl.distance, math.inf
+    def _sweep(self, T_world_frame: Mapping[str, ArrayLike]) -> tuple:
+        """``(d, PA, PB, N, best)``: what :meth:`distances` reports, and the shape pair realising each."""
+        self._set_poses(T_world_frame)
+        res, req, coal_distance = self._result, self._request, coal.distance
         m = len(self._pairs)
-        d_best = np.empty(m)
-        d_cores = np.empty(m)
-        best_ids: list[tuple[int, int]] = []
-        c_a: list[NDArray[np.float64]] = []
-        c_b: list[NDArray[np.float64]] = []
-        for k, combos in enumerate(self._pair_combos):
-            best_d = inf
-            best: tuple[float, int, int, list[NDArray[np.float64]]] | None = None
-            for i, j, obj_a, obj_b, radius_sum in combos:
-                # python-fcl only overwrites the result if the new distance is smaller: reset it to reuse it.
-                res.min_distance = inf
-                d_core = fcl_distance(obj_a, obj_b, req, res)
-                if d_core - radius_sum < best_d:
-                    best_d = d_core - radius_sum
-                    # nearest_points is a fresh list of fresh arrays on every call: safe to keep.
-                    best = (d_core, i, j, res.nearest_points)
-            assert best is not None  # combos is never empty (checked in __init__)
-            d_best[k] = best_d
-            d_cores[k] = best[0]
-            best_ids.append((best[1], best[2]))
-            c_a.append(best[3][0])
-            c_b.append(best[3][1])
+        d, PA, PB, N = np.empty(m), np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
+        best: list[tuple[_Placed, _Placed]] = []
+        for k, combos in enumerate(self._pair_shapes):
+            d[k] = math.inf
+            pair_best = combos[0]
+            for sa, sb in combos:
+                res.clear()
+                dist = coal_distance(sa.obj, sb.obj, req, res)
+                if dist < d[k]:
+                    d[k] = dist
+                    PA[k], PB[k], N[k] = res.getNearestPoint1(), res.getNearestPoint2(), res.normal
+                    pair_best = (sa, sb)
+            best.append(pair_best)
+            if not _consistent(d[k], PA[k], PB[k], N[k]) or (d[k] < 0.0 and not self._pushes_apart(*pair_best,
+                                                                                                      d[k], N[k])):
+                N[k], PA[k] = self._probe(*pair_best)
+                PB[k] = PA[k] + d[k] * N[k]
+        return d, PA, PB, N, best
 
-        CA = np.array(c_a)
-        CB = np.array(c_b)
-        diff = CB - CA
-        dist = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-        degenerate = dist < _DEGENERATE_TOL_M
-        # Separated cores: n = (c_b - c_a)/‖·‖; penetrating cores (fcl's EPA): n = (c_a - c_b)/‖·‖.
-        N = diff * (np.where(d_cores >= 0.0, 1.0, -1.0) / np.where(degenerate, 1.0, dist))[:, None]
-        for k in np.flatnonzero(degenerate):
-            i, j = best_ids[k]
-            N[k] = self._probe_normal(i, j)
-        ids = np.array(best_ids)
-        PA = CA + self._radii[ids[:, 0], None] * N
-        PB = CB - self._radii[ids[:, 1], None] * N
-        return d_best, PA, PB, N, best_ids
+    def _pushes_apart(self, sa: _Placed, sb: _Placed, d: float, n: NDArray[np.float64]) -> bool:
+        """Whether moving B by ``h n`` increases the distance by ``h`` (coal's normal of crossing capsule cores
+        is unit and consistent with its points but not a direction of the depth)."""
+        p_b = np.array(sb.obj.getTransform().getTranslation())
+        sb.obj.setTranslation(p_b + _PROBE_STEP_M * n)
+        self._result.clear()
+        moved = coal.distance(sa.obj, sb.obj, self._request, self._result)
+        sb.obj.setTranslation(p_b)
+        return abs(moved - d - _PROBE_STEP_M) < 0.1 * _PROBE_STEP_M
 
-    def _core_query(self, i: int, j: int) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
-        """Signed distance (m) of cores i and j at their current transforms, and their witness points."""
-        res = self._result
-        # python-fcl only overwrites the result if the new distance is smaller: reset it to reuse it.
-        res.min_distance = math.inf
-        d = fcl.distance(self._cores[i].obj, self._cores[j].obj, self._request, res)
-        return float(d), res.nearest_points[0], res.nearest_points[1]
-
-    def _probe_normal(self, i: int, j: int) -> NDArray[np.float64]:
-        """Unit normal (world) of cores i (A) and j (B) whose witness points coincide (module docstring)."""
-        T_b = self._T_world_core[j]
-        T_a = self._T_world_core[i]
-        assert T_a is not None and T_b is not None
-        obj_b = self._cores[j].obj
-        candidates = [T_b[:3, 3] - T_a[:3, 3], *np.eye(3)]
+    def _probe(self, sa: _Placed, sb: _Placed) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Unit normal (world) and A's witness point of a pair coal gave no direction for (module docstring)."""
+        res, req = self._result, self._request
+        p_b = np.array(sb.obj.getTransform().getTranslation())
+        candidates = [p_b - np.array(sa.obj.getTransform().getTranslation()), *np.eye(3)]
         try:
             for u in candidates:
                 norm_u = float(np.linalg.norm(u))
                 if norm_u < _DEGENERATE_TOL_M:
                     continue
-                p = T_b[:3, 3] + (_PROBE_STEP_M / norm_u) * u
-                obj_b.setTransform(fcl.Transform(T_b[:3, :3], p))
-                n = _normal_from_witnesses(*self._core_query(i, j))
-                if n is not None:
-                    return n
+                sb.obj.setTranslation(p_b + (_PROBE_STEP_M / norm_u) * u)
+                res.clear()
+                dist = coal.distance(sa.obj, sb.obj, req, res)
+                pa, pb, n = res.getNearestPoint1(), res.getNearestPoint2(), np.array(res.normal)
+                if _consistent(dist, pa, pb, n) and self._pushes_apart(sa, sb, dist, n):
+                    return n, pa
         finally:
-            obj_b.setTransform(fcl.Transform(T_b[:3, :3], T_b[:3, 3]))
-        # Unreachable for real geometry (a probe along one of the world axes always leaves the contact);
-        # fall back to the centre difference rather than returning NaN into an optimiser.
-        c = candidates[0]
-        nc = float(np.linalg.norm(c))
-        return c / nc if nc > 0.0 else np.array([0.0, 0.0, 1.0])
+            sb.obj.setTranslation(p_b)
+        raise RuntimeError(f"no contact normal found for shapes {sa.name!r}, {sb.name!r}")  # a world axis always works
 
 
-
-def _normal_from_witnesses(
-    d_core: float, ca: NDArray[np.float64], cb: NDArray[np.float64]
-) -> NDArray[np.float64] | None:
-    """Unit normal from fcl's core witness points, or ``None`` if they (nearly) coincide.
-
-    ``(cb - ca)/‖·‖`` when the cores are separated (``d_core > 0``), ``(ca - cb)/‖·‖`` when they penetrate:
-    fcl's EPA then returns A's point deepest inside B and B's point deepest inside A (checked in the tests).
-    The points alone cannot tell the two cases apart, hence the sign of ``d_core``.
-    """
-    diff = cb - ca
-    dist = math.sqrt(diff.dot(diff))  # np.linalg.norm costs ~4× more here
-    if dist < _DEGENERATE_TOL_M:
-        return None
-    return diff * (1.0 / dist if d_core >= 0.0 else -1.0 / dist)
+def _consistent(d: float, pa: NDArray[np.float64], pb: NDArray[np.float64], n: NDArray[np.float64]) -> bool:
+    """Whether coal's output is usable as is: a unit normal with ``p_b − p_a = d n``."""
+    return abs(float(n @ n) - 1.0) < 1e-9 and float(np.linalg.norm(pb - pa - d * n)) < 1e-7
 
 
-def default_pairs(
-    chaser_bodies: Sequence[str], adjacent: Collection[tuple[str, str]], target_bodies: Sequence[str]
-) -> list[tuple[str, str]]:
+def default_pairs(chaser_bodies: Sequence[str], adjacent: Collection[tuple[str, str]],
+                  target_bodies: Sequence[str]) -> list[tuple[str, str]]:
     """Collision pairs: all non-adjacent chaser body pairs, then every chaser body against every target body.
 
     Adjacency is unordered. Chaser pairs are ``(chaser_bodies[i], chaser_bodies[j])`` with ``i < j``; target
-    pairs are ``(chaser, target)`` so the target is body B (whose shapes ``excluded_shapes`` may name).
-    With 8 chained chaser bodies (7 adjacent pairs) and 1 target body: 28 - 7 + 8 = 29 pairs (paper's m).
+    pairs are ``(chaser, target)``, the target bodies in the given order, chaser-major.
+    With 8 chained chaser bodies (7 adjacent pairs) and 2 target bodies (the target and its handle):
+    28 - 7 + 16 = 37 pairs.
 
     Raises:
         ValueError: duplicate names, a body both chaser and target, an adjacent pair naming an unknown body.
@@ -418,65 +325,6 @@ def default_pairs(
         if a not in chaser or b not in chaser:
             raise ValueError(f"adjacent pair ({a!r}, {b!r}) names a body not in chaser_bodies")
         adj.add(frozenset((a, b)))
-    pairs = [
-        (chaser[i], chaser[j])
-        for i in range(len(chaser))
-        for j in range(i + 1, len(chaser))
-        if frozenset((chaser[i], chaser[j])) not in adj
-    ]
-    pairs += [(c, t) for c in chaser for t in target]
-    return pairs
-
-
-def closest_points_segment_segment(
-    p0a: ArrayLike, p1a: ArrayLike, p0b: ArrayLike, p1b: ArrayLike
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Closest points (m) of segments ``[p0a, p1a]`` and ``[p0b, p1b]`` (Ericson, RTCD §5.1.9, clamped).
-
-    Parallel segments (``‖da × db‖² ≤ 1e-14 ‖da‖² ‖db‖²``) take ``s = 0`` and then clamp, which still gives
-    a closest pair (the closest distance of parallel segments is attained at an end point of one of them).
-    Degenerate (point) segments are handled.
-    """
-    P0a = np.asarray(p0a, dtype=float)
-    P0b = np.asarray(p0b, dtype=float)
-    da = np.asarray(p1a, dtype=float) - P0a
-    db = np.asarray(p1b, dtype=float) - P0b
-    r = P0a - P0b
-    a = float(da @ da)
-    e = float(db @ db)
-    f = float(db @ r)
-    tiny = 1e-300
-    if a <= tiny and e <= tiny:
-        return P0a, P0b
-    if a <= tiny:
-        s, t = 0.0, min(max(f / e, 0.0), 1.0)
-    else:
-        c = float(da @ r)
-        if e <= tiny:
-            s, t = min(max(-c / a, 0.0), 1.0), 0.0
-        else:
-            b = float(da @ db)
-            denom = a * e - b * b  # = ‖da × db‖² ≥ 0
-            # Relative test: for (near-)parallel segments the line solution is ill-conditioned; any s works
-            # before the clamping below, which then finds the right end point.
-            s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-14 * a * e else 0.0
-            t = (b * s + f) / e
-            # t outside [0, 1]: clamp it and recompute the best s for that end point of segment b.
-            if t < 0.0:
-                t, s = 0.0, min(max(-c / a, 0.0), 1.0)
-            elif t > 1.0:
-                t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
-    return P0a + s * da, P0b + t * db
-
-
-def capsule_capsule_distance(
-    p0a: ArrayLike, p1a: ArrayLike, ra: float, p0b: ArrayLike, p1b: ArrayLike, rb: float
-) -> float:
-    """Signed distance (m) of two capsules given by segment end points (m) and radii (m), analytically.
-
-    ``segment distance - ra - rb``: exact also in penetration, because a capsule is its segment swept by a
-    ball and the signed distance of sphere-swept convex sets is that of their cores minus the radii (for
-    crossing segments the depth is ``ra + rb``: the segments' Minkowski difference is flat).
-    """
-    ca, cb = closest_points_segment_segment(p0a, p1a, p0b, p1b)
-    return float(np.linalg.norm(cb - ca)) - float(ra) - float(rb)
+    pairs = [(chaser[i], chaser[j]) for i in range(len(chaser)) for j in range(i + 1, len(chaser))
+             if frozenset((chaser[i], chaser[j])) not in adj]
+    return pairs + [(c, t) for c in chaser for t in target]

@@ -1,9 +1,10 @@
 """Signed distances of a collision scene as a CasADi function with exact witness-point gradients.
 
-IPOPT needs the collision constraints (Eq. 19) and their first derivatives; python-fcl is not
+IPOPT needs the collision constraints (Eq. 19) and their first derivatives; coal is not
 symbolic, so the distances enter the NLP through a :class:`casadi.Callback` whose input is the world
-pose of every body at one via point, ``[vec(R_world_body) (9, column-major), p_world_body (3)]`` per
-body, and whose Jacobian comes from the witness points (TrajOpt style): with the witness point a held
+pose of every frame at one via point, ``[vec(R_world_frame) (9, column-major), p_world_frame (3)]`` per
+frame (a body moves with its frame, see :class:`~planner.collision.CollisionBody`), and whose Jacobian
+comes from the witness points (TrajOpt style): with the witness point a held
 fixed in body A (local coordinates ``a = R_Aᵀ (p_a − p_A)``) and n the unit normal,
 ``∂d/∂p_A = −n``, ``∂d/∂R_A[i, j] = −n_i a_j`` (and + for body B). CasADi chains this through the
 symbolic kinematics and the base integration, so the NLP gets exact first derivatives of d wherever the
@@ -27,9 +28,9 @@ POSE_SIZE = 12  # vec(R) column-major (9) + p (3)
 SWEEP_CACHE_SIZE = 512
 
 
-def _poses(scene_bodies: Sequence[str], x: np.ndarray) -> dict[str, np.ndarray]:
+def _poses(frames: Sequence[str], x: np.ndarray) -> dict[str, np.ndarray]:
     T = {}
-    for i, name in enumerate(scene_bodies):
+    for i, name in enumerate(frames):
         block = x[POSE_SIZE * i: POSE_SIZE * (i + 1)]
         Ti = np.eye(4)
         Ti[:3, :3] = block[:9].reshape(3, 3, order="F")
@@ -68,27 +69,27 @@ class _DistanceJacobian(ca.Callback):
 class SceneDistanceCallback(ca.Callback):
     """``d = f(poses)``: signed distances (m) of every pair of ``scene`` at one via point.
 
-    ``body_order`` fixes where each body's pose sits in the input vector.
+    ``frame_order`` fixes where each frame's pose sits in the input vector.
     """
 
-    def __init__(self, name: str, scene: CollisionScene, body_order: Sequence[str]) -> None:
+    def __init__(self, name: str, scene: CollisionScene, frame_order: Sequence[str]) -> None:
         ca.Callback.__init__(self)
         self.scene = scene
-        self.body_order = list(body_order)
+        self.body_order = list(frame_order)
         self.index = {b: i for i, b in enumerate(self.body_order)}
         self.n_x = POSE_SIZE * len(self.body_order)
         self.n_pairs = len(scene.pairs)
         rows, cols = [], []
         for k, (a, b) in enumerate(scene.pairs):
             for body in (a, b):
-                start = POSE_SIZE * self.index[body]
+                start = POSE_SIZE * self.index[scene.frame_of(body)]
                 rows += [k] * POSE_SIZE
                 cols += list(range(start, start + POSE_SIZE))
         self.jac_sparsity = ca.Sparsity.triplet(self.n_pairs, self.n_x, rows, cols)
         # (row, column) of each structural nonzero, in CasADi's column-major order
         self.jac_rows, self.jac_cols = (np.asarray(a) for a in self.jac_sparsity.get_triplet())
-        self._body_a = np.array([self.index[a] for a, _ in scene.pairs])
-        self._body_b = np.array([self.index[b] for _, b in scene.pairs])
+        self._body_a = np.array([self.index[scene.frame_of(a)] for a, _ in scene.pairs])
+        self._body_b = np.array([self.index[scene.frame_of(b)] for _, b in scene.pairs])
         self._cache: OrderedDict[bytes, tuple[np.ndarray, ...]] = OrderedDict()
         self._jac: _DistanceJacobian | None = None
         self.construct(name, {"enable_fd": False})

@@ -3,8 +3,9 @@
 The NLPs enforce their constraints at k via points only. :func:`verify` re-checks a plan on its stored
 samples at a step ≤ :data:`MAX_STEP_S` (phase starts and ends always included) with tools the NLPs do
 not use: pinocchio for forward kinematics and centroidal momentum, the accurate torque-free target
-propagation (:class:`planner.target.TargetMotion`), python-fcl through :func:`planner.scene.build_scene`,
-and 5-point finite differences (FD) of the stored poses for every rate (:mod:`planner.verify_kinematics`).
+propagation (:class:`planner.target.TargetMotion`), closed-form signed distances
+(:mod:`planner.distance_closed_form`; the NLPs use coal), and 5-point finite differences (FD) of the
+stored poses for every rate (:mod:`planner.verify_kinematics`).
 A plan is *feasible* only if every check passes. Checks (``margin`` ≥ 0 means satisfied, SI units),
 in report order; the tolerances live in :mod:`planner.verify_checks`:
 
@@ -12,8 +13,11 @@ in report order; the tolerances live in :mod:`planner.verify_checks`:
 * ``joint_rate_consistency``: stored q̇ vs FD of the stored q (< 1e-3 rad/s; the rates feed the velocity
   and momentum checks). FD error measured on solved plans: ≤ 3e-5 rad/s, at the end of the tracking
   blend, where the joint jerk jumps; elsewhere ~1e-9. Catches wrong or mis-scaled rates, not noise.
-* ``collision``: every scene pair (29 by default) ≥ ``limits.collision_margin_m``. Up to the grasp the
-  target moves torque-free; after it, it is rigidly attached: ``T_world_target = T_world_ee T_ee_target``.
+* ``collision``: every scene pair (37 by default: :mod:`planner.scene`) against the clearance the handle-contact
+  rule (:mod:`planner.contact_rule`) asks of it at that instant: ``limits.collision_margin_m`` for all, but the
+  gripper–handle pair in tracking (the margin less the closed back-off) and after the grasp (exempt). Up to
+  the grasp the target moves torque-free; after it, it is rigidly attached: ``T_world_target = T_world_ee
+  T_ee_target``.
 * ``momentum_chaser`` (up to the grasp; must be 0) and ``momentum_compound`` (from the grasp on; must
   keep its value at the grasp): ``h = A_g(q) [ν_base; q̇]`` from pinocchio's centroidal map, the base
   twist ν_base by FD of the stored base pose. Value: relative deviation, max over samples of
@@ -171,7 +175,7 @@ def verify(plan, step_s: float = DEFAULT_STEP_S) -> VerifyReport:  # noqa: ANN00
     checks: dict[str, CheckResult] = {}
     checks.update(joint_checks(robot, t, q, qd, phase_index))
     checks["joint_rate_consistency"] = rate_consistency_check(robot, t, q, qd, phase_index, segments, sel)
-    checks["collision"], contact = collision_check(sc, chaser, t, x, q, phase_index, sel, T_target)
+    checks["collision"], contact = collision_check(sc, chaser, t, x, q, phase_index, plan.phases, sel, T_target)
     mom, momentum = momentum_checks(chaser, compound, motion, t, x, q, qd, phase_index, segments, sel, k_pre, k_post)
     checks.update(mom)
     checks.update(grasp_checks(motion, t, T_ee, T_free, T_body_grasp, segments[1], k_pre))

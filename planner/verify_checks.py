@@ -15,8 +15,9 @@ from numpy.typing import NDArray
 
 from planner.robot import RobotModel
 from planner.scenario import Scenario
-from planner.scene import TARGET_BODY, build_scene
+from planner.scene import TARGET_BODY, scene_layout
 from planner.target import TargetMotion
+from planner.verify_collision import required_clearances, sweep_pairs
 from planner.verify_kinematics import (
     PHASE_NAMES,
     TIME_TOL_S,
@@ -104,43 +105,45 @@ def rate_consistency_check(robot: RobotModel, t: Array, q: Array, qd: Array, pha
 
 @dataclass(frozen=True)
 class CollisionSamples:
-    """Per verified sample: the smallest signed distance (m), the pair that has it and its witness points."""
+    """Per verified sample: the smallest signed distance (m) over the pairs held to the full margin, the pair
+    that has it and its witness points; per pair, its smallest distance while held to the full margin."""
 
     min_distance_m: Array  # [n]
     closest_pair: list[str]  # [n] "A-B (shapeA/shapeB)"
     closest_points_m: Array  # [n, 2, 3] witness points on A and on B, world frame
-    pair_min_distance_m: dict[str, float]  # "A-B" -> min over the samples
+    pair_min_distance_m: dict[str, float]  # "A-B" -> min over the samples where it keeps the full margin
 
 
 def collision_check(sc: Scenario, chaser: PinKinematics, t: Array, x: Array, q: Array, phase_index: Array,
-                    sel: Array, T_target: Array) -> tuple[CheckResult, CollisionSamples]:
-    """Signed distance of every scene pair at the verified samples: the check and what each sample saw."""
-    scene = build_scene(sc)
-    names = [f"{a}-{b}" for a, b in scene.pairs]
-    pair_min = dict.fromkeys(names, np.inf)
-    min_dist = np.empty(len(sel))
-    closest: list[str] = []
-    points = np.empty((len(sel), 2, 3))
-    worst = (np.inf, "", 0)
-    for i, k in enumerate(sel):
+                    phases: dict[str, tuple[float, float]], sel: Array,
+                    T_target: Array) -> tuple[CheckResult, CollisionSamples]:
+    """Signed distance of every scene pair at the verified samples against the handle-contact rule
+    (:mod:`planner.contact_rule`), by verify's own engine (:mod:`planner.verify_collision`)."""
+    layout = scene_layout(sc.robot, sc.target)
+    frames: dict[str, list[Array]] = {name: [] for name in sc.robot.body_names}
+    for k in sel:
         chaser.forward(x[k], q[k])
-        poses = chaser.body_poses()
-        poses[TARGET_BODY] = T_target[k]
-        dists = scene.distances(poses)
-        for name, pd in zip(names, dists, strict=True):
-            pair_min[name] = min(pair_min[name], pd.distance_m)
-        j = int(np.argmin([pd.distance_m for pd in dists]))
-        pd = dists[j]
-        label = f"{names[j]} ({pd.shape_pair[0]}/{pd.shape_pair[1]})"
-        min_dist[i] = pd.distance_m
-        closest.append(label)
-        points[i] = pd.p_world_a, pd.p_world_b
-        if pd.distance_m < worst[0]:
-            worst = (pd.distance_m, label, int(k))
-    d, pair, k = worst
-    check = make_check("collision", d, sc.limits.collision_margin_m, "m", f"{pair} at {when(t[k], phase_index[k])}",
-                       t[k], lower=True, tol=FEASIBILITY_TOL)
-    return check, CollisionSamples(min_dist, closest, points, {name: float(v) for name, v in pair_min.items()})
+        for name, T in chaser.body_poses().items():
+            frames[name].append(T)
+    poses = {name: np.array(Ts) for name, Ts in frames.items()} | {TARGET_BODY: T_target[sel]}
+    sweep = sweep_pairs(layout, poses)
+    margin = sc.limits.collision_margin_m
+    required = required_clearances(layout, margin, t[sel], phase_index[sel], phases, sc.approach.pregrasp_backoff_m)
+    slack = sweep.distance_m - required
+    i, j = np.unravel_index(int(np.argmin(slack)), slack.shape)
+    names = layout.pair_names()
+    label = f"{names[j]} ({sweep.shape_pair[i][j][0]}/{sweep.shape_pair[i][j][1]})"
+    k = int(sel[i])
+    check = make_check("collision", sweep.distance_m[i, j], required[i, j], "m",
+                       f"{label} at {when(t[k], phase_index[k])}", t[k], lower=True, tol=FEASIBILITY_TOL)
+    held = np.where(required == margin, sweep.distance_m, np.inf)
+    jmin = np.argmin(held, axis=1)
+    rows = np.arange(len(sel))
+    closest = [f"{names[c]} ({sweep.shape_pair[r][c][0]}/{sweep.shape_pair[r][c][1]})" for r, c in zip(rows, jmin,
+                                                                                                      strict=True)]
+    points = np.stack([sweep.p_world_a[rows, jmin], sweep.p_world_b[rows, jmin]], axis=1)
+    pair_min = {name: float(v) for name, v in zip(names, held.min(axis=0), strict=True)}
+    return check, CollisionSamples(held[rows, jmin], closest, points, pair_min)
 
 
 def _relative_deviation(dh: Array, h_arm: Array, h_ref: Array) -> tuple[Array, float, float]:

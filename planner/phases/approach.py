@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from planner.bspline import UniformCubicBSpline, approach_vertices
 from planner.collision_callback import SceneDistanceCallback, pose_vector
+from planner.contact_rule import APPROACH, TRACKING, closed_backoff_m, required_clearance_m
 from planner.costs import manipulability_sym
 from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
 from planner.phases import constraint_backoff
@@ -35,7 +36,7 @@ from planner.phases.ipopt import ipopt_options, ipopt_solver
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m
 from planner.robot import fk_function
 from planner.scenario import Scenario
-from planner.scene import build_scene
+from planner.scene import TARGET_BODY, build_scene, scene_layout
 from planner.target import TargetState
 from planner.target_symbolic import prediction_function
 
@@ -228,8 +229,8 @@ class ApproachProblem:
         self.pose_size = via_poses[0].numel()
 
         # ---- NLP: smooth part + collision callbacks ----------------------------------------------
-        self.scene = build_scene(sc, scale=1.0)
-        body_order = [*self.robot.body_names, "target"]
+        self.scene = build_scene(sc, scale=1.0, gripper_handle=True)
+        body_order = [*self.robot.body_names, TARGET_BODY]
         self.distance_cb = SceneDistanceCallback("approach_distance", self.scene, body_order)
         all_poses = [*via_poses, *tr_poses]
         dists = [self.distance_cb(pz) for pz in all_poses]
@@ -238,7 +239,6 @@ class ApproachProblem:
         rob = self.robot
         n_d = len(self.scene.pairs)
         n_q_box = k + n_tr + 1
-        margin = sc.limits.collision_margin_m
         tr_err_v = ca.vertcat(*tr_err)
         g_parts = [pos_err, rot_err, tr_err_v, q_box, qd_box, qd_steps, qd_grasp, *dists]
         bo = constraint_backoff
@@ -246,7 +246,7 @@ class ApproachProblem:
         qd_lim = bo.JOINT_VELOCITY_FRACTION * rob.qd_max
         lbg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_lo, n_q_box),
                np.tile(-qd_lim, k), np.concatenate([-f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
-               -GRASP_RATE_FRACTION * rob.qd_max, np.full(len(all_poses) * n_d, margin + bo.COLLISION_M)]
+               -GRASP_RATE_FRACTION * rob.qd_max, self._clearance_bounds(k, tr_times) + bo.COLLISION_M]
         ubg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_hi, n_q_box),
                np.tile(qd_lim, k), np.concatenate([f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
                GRASP_RATE_FRACTION * rob.qd_max, np.full(len(all_poses) * n_d, np.inf)]
@@ -263,10 +263,11 @@ class ApproachProblem:
             extra_w.append(s)
             lbw_extra.append(-10.0)
             ubw_extra.append(10.0)
+            n_scaled = len(self.scaled_scene.pairs)
             for pz in all_poses:
                 g_parts.append(self.scaled_cb(pz) - s)
-                lbg.append(np.zeros(n_d))
-                ubg.append(np.full(n_d, np.inf))
+                lbg.append(np.zeros(n_scaled))
+                ubg.append(np.full(n_scaled, np.inf))
             cost = cost - c.min_distance * s
         self.n_extra = len(extra_w)
         self.lbg = np.concatenate(lbg)
@@ -289,6 +290,16 @@ class ApproachProblem:
         self._scan: tuple[tuple[bytes, bytes, int], list[ApproachGuess]] | None = None
         self.n_pairs = n_d
         self.n_dist = len(all_poses) * n_d
+
+    def _clearance_bounds(self, k: int, tr_times: list[float]) -> Array:
+        """Lower bounds (m) of the distances at the k via points, then at the tracking nodes (contact rule)."""
+        sc = self.scenario
+        layout = scene_layout(sc.robot, sc.target)
+        margin, b0, t2 = sc.limits.collision_margin_m, sc.approach.pregrasp_backoff_m, sc.phases.tracking_s
+        parts = [required_clearance_m(self.scene.pairs, layout.gripper_handle, margin, APPROACH)] * k
+        parts += [required_clearance_m(self.scene.pairs, layout.gripper_handle, margin, TRACKING,
+                                       closed_backoff_m(b0, t_node, t2)) for t_node in tr_times]
+        return np.concatenate(parts)
 
     def _grasp_joint_rates(self, x_base, q, qd_nodes, R_target, omega_body,  # noqa: ANN001, ANN202
                            T_body_grasp: Array):

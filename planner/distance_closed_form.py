@@ -1,0 +1,399 @@
+"""Exact signed distances of boxes and capsules in closed form, vectorised over poses (verify's engine).
+
+:func:`planner.verify.verify` is a second opinion on the NLPs, whose distances come from ``coal``
+(:mod:`planner.collision`); this module shares no code with that path. Every shape is a *core* swept by
+a ball: a box is its own core (radius 0), a capsule is its segment with its radius. The signed distance of
+two sphere-swept convex sets is that of their cores minus the radii, with the same normal, so only core
+distances are computed here:
+
+* separated cores: the exact minimum over the features that can realise it (segment–segment by
+  Ericson's clamped closed form; segment–box: the segment's end points against the box and the segment
+  against the box's 12 edges; box–box: each box's 8 vertices against the other box and the 12 × 12 edge
+  pairs). For two disjoint convex polytopes one closest pair always has a vertex of one of them, or lies
+  on an edge of each, so the minimum over these features is the distance, in every pose.
+* intersecting cores: the penetration depth is the smallest translation that separates them, attained
+  along a facet normal of their Minkowski difference; for a box and a segment those are the box's 3 axes
+  and the 3 cross products of the segment with them, for two boxes the 15 axes of the separating-axis
+  test. The minimum of the projection overlaps over these candidates is the depth, exactly.
+
+Conventions as in :mod:`planner.collision`: ``p_world_b - p_world_a = distance_m * normal_world`` and
+translating B by ``+ε n`` increases the distance by ``ε``. Shapes are placed by ``T_world_shape`` stacks
+``(n, 4, 4)`` (metres). Degenerate normals (crossing or collinear segments, touching cores) get a valid
+one-sided normal; the distance itself never depends on that choice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.geometry import Box, Capsule, Shape
+
+Array = NDArray[np.float64]
+
+# Below this core separation (m) the direction between the witness points carries no information.
+DEGENERATE_M = 1e-9
+# Cross products shorter than this (relative) are not candidate axes: the segment is parallel to that edge.
+_PARALLEL_REL = 1e-12
+# Sign patterns of a box's 8 vertices and, per axis, of its 4 edges' offsets on the other two axes.
+_VERTEX_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+_EDGE_SIGNS = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=float)
+
+
+@dataclass(frozen=True)
+class SignedDistances:
+    """Per pose: signed distance (m; < 0 minus the penetration depth), witness points and unit normal (world).
+
+    Arrays: ``distance_m`` (n,), ``p_world_a``, ``p_world_b``, ``normal_world`` (n, 3).
+    """
+
+    distance_m: Array
+    p_world_a: Array
+    p_world_b: Array
+    normal_world: Array
+
+
+def signed_distance(shape_a: Shape, T_world_a: Array, shape_b: Shape, T_world_b: Array) -> SignedDistances:
+    """Signed distance of ``shape_a`` posed by ``T_world_a`` and ``shape_b`` by ``T_world_b`` ((n, 4, 4) or 4×4)."""
+    Ta = np.asarray(T_world_a, dtype=float).reshape(-1, 4, 4)
+    Tb = np.asarray(T_world_b, dtype=float).reshape(-1, 4, 4)
+    Ta, Tb = np.broadcast_arrays(Ta, Tb)
+    if isinstance(shape_a, Capsule) and isinstance(shape_b, Capsule):
+        d, ca, cb, n = segment_segment(*_segment(shape_a, Ta), *_segment(shape_b, Tb))
+    elif isinstance(shape_a, Box) and isinstance(shape_b, Capsule):
+        d, ca, cb, n = box_segment(_half(shape_a), Ta, *_segment(shape_b, Tb))
+    elif isinstance(shape_a, Capsule) and isinstance(shape_b, Box):
+        d, cb, ca, n = box_segment(_half(shape_b), Tb, *_segment(shape_a, Ta))
+        n = -n
+    elif isinstance(shape_a, Box) and isinstance(shape_b, Box):
+        d, ca, cb, n = box_box(_half(shape_a), Ta, _half(shape_b), Tb)
+    else:
+        raise TypeError(f"unsupported shapes {type(shape_a).__name__}, {type(shape_b).__name__}")
+    ra, rb = _radius(shape_a), _radius(shape_b)
+    return SignedDistances(d - ra - rb, ca + ra * n, cb - rb * n, n)
+
+
+def _radius(shape: Shape) -> float:
+    return float(shape.radius_m) if isinstance(shape, Capsule) else 0.0
+
+
+def _half(box: Box) -> Array:
+    return 0.5 * np.asarray(box.size_m, dtype=float)
+
+
+def _segment(capsule: Capsule, T: Array) -> tuple[Array, Array]:
+    """Start point and direction (world, m) of a capsule's core: from −L/2 to +L/2 along the shape's z."""
+    axis = T[:, :3, 2]
+    return T[:, :3, 3] - 0.5 * capsule.length_m * axis, capsule.length_m * axis
+
+
+def _dot(a: Array, b: Array) -> Array:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _unit(v: Array) -> Array:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def closest_segment_params(p: Array, u: Array, q: Array, v: Array) -> tuple[Array, Array]:
+    """Parameters ``s, t ∈ [0, 1]`` of a closest pair of segments ``p + s u`` and ``q + t v`` (Ericson §5.1.9).
+
+    Broadcasts over leading axes. Parallel segments take ``s = 0`` before clamping, which still yields a
+    closest pair (parallel segments are closest at an end point of one of them); point segments work too.
+    """
+    r = p - q
+    a, e, b, c, f = _dot(u, u), _dot(v, v), _dot(u, v), _dot(u, r), _dot(v, r)
+    tiny = 1e-300
+    a_safe, e_safe = np.maximum(a, tiny), np.maximum(e, tiny)
+    denom = a * e - b * b  # ‖u × v‖²
+    s = np.where(denom > 1e-14 * a * e, np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1), 0.0)
+    t = (b * s + f) / e_safe
+    s = np.where(t < 0.0, np.clip(-c / a_safe, 0, 1), np.where(t > 1.0, np.clip((b - c) / a_safe, 0, 1), s))
+    t = np.clip(t, 0.0, 1.0)
+    # point segments: the other segment's closest point to it
+    s = np.where(e <= tiny, np.clip(-c / a_safe, 0, 1), s)
+    t = np.where(e <= tiny, 0.0, t)
+    s = np.where(a <= tiny, 0.0, s)
+    t = np.where(a <= tiny, np.where(e <= tiny, 0.0, np.clip(f / e_safe, 0, 1)), t)
+    return s, t
+
+
+def segment_segment(p: Array, u: Array, q: Array, v: Array) -> tuple[Array, Array, Array, Array]:
+    """Core distance (m, ≥ 0), closest points and unit normal (from A to B) of segments ``p + s u``, ``q + t v``.
+
+    When the segments meet, the normal is ``u × v`` (or, for parallel ones, a perpendicular), oriented
+    from A's centre towards B's: either side is a valid one-sided gradient of ``|n·δ| − r_a − r_b``.
+    """
+    s, t = closest_segment_params(p, u, q, v)
+    ca, cb = p + s[..., None] * u, q + t[..., None] * v
+    diff = cb - ca
+    d = np.linalg.norm(diff, axis=-1)
+    n = diff / np.where(d > DEGENERATE_M, d, 1.0)[..., None]
+    touching = d <= DEGENERATE_M
+    if np.any(touching):
+        n[touching] = _crossing_normal(u[touching], v[touching], (q + 0.5 * v - p - 0.5 * u)[touching])
+    return d, ca, cb, n
+
+
+def _crossing_normal(u: Array, v: Array, centres: Array) -> Array:
+    """Unit normal of meeting segments: ``u × v``, else ⟂ ``u``; pointing along the centre difference."""
+    n = np.cross(u, v)
+    parallel = np.linalg.norm(n, axis=-1) <= _PARALLEL_REL * np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1)
+    if np.any(parallel):
+        perp = centres[parallel] - _dot(centres[parallel], _unit_or_z(u[parallel]))[:, None] * _unit_or_z(u[parallel])
+        fallback = np.cross(_unit_or_z(u[parallel]), _least_aligned_axis(_unit_or_z(u[parallel])))
+        small = np.linalg.norm(perp, axis=-1) <= DEGENERATE_M
+        n[parallel] = np.where(small[:, None], fallback, perp)
+    n = _unit(n)
+    return np.where((_dot(n, centres) < 0.0)[:, None], -n, n)
+
+
+def _unit_or_z(u: Array) -> Array:
+    norm = np.linalg.norm(u, axis=-1, keepdims=True)
+    return np.where(norm > 0.0, u / np.where(norm > 0.0, norm, 1.0), np.array([0.0, 0.0, 1.0]))
+
+
+def _least_aligned_axis(u: Array) -> Array:
+    return np.eye(3)[np.argmin(np.abs(u), axis=-1)]
+
+
+def point_box(x: Array, half: Array) -> Array:
+    """Closest point of the box ``|y_i| ≤ half_i`` to the points ``x`` (box frame, m)."""
+    return np.clip(x, -half, half)
+
+
+def _box_edges(half: Array) -> tuple[Array, Array]:
+    """The 12 edges of a box centred at 0 (its frame): start points (12, 3) and direction vectors (12, 3)."""
+    starts, dirs = [], []
+    for axis in range(3):
+        j, k = [i for i in range(3) if i != axis]
+        for sj, sk in _EDGE_SIGNS:
+            p = np.zeros(3)
+            p[axis], p[j], p[k] = -half[axis], sj * half[j], sk * half[k]
+            d = np.zeros(3)
+            d[axis] = 2.0 * half[axis]
+            starts.append(p)
+            dirs.append(d)
+    return np.array(starts), np.array(dirs)
+
+
+def _to_frame(T: Array, x: Array) -> Array:
+    """Points (n, ..., 3) from the world into the frame of ``T`` (n, 4, 4)."""
+    extra = (1,) * (x.ndim - 2)
+    R = T[:, :3, :3].reshape(T.shape[0], *extra, 3, 3)
+    o = T[:, :3, 3].reshape(T.shape[0], *extra, 3)
+    return np.einsum("...ji,...j->...i", R, x - o)
+
+
+def _to_world(T: Array, x: Array, direction: bool = False) -> Array:
+    out = np.einsum("nij,nj->ni", T[:, :3, :3], x)
+    return out if direction else out + T[:, :3, 3]
+
+
+def box_segment(half: Array, T_box: Array, p: Array, u: Array) -> tuple[Array, Array, Array, Array]:
+    """Signed core distance (m) of a box (half sides ``half``, pose ``T_box``) and segments ``p + s u`` (world).
+
+    Returns ``(d, c_box, c_seg, n)``: ``c_seg − c_box = d n``, ``n`` moves the segment away (world).
+    """
+    a, du = _to_frame(T_box, p), np.einsum("nji,nj->ni", T_box[:, :3, :3], u)
+    d_sep, c_box, c_seg = _box_segment_separated(half, a, du)
+    n_sep = (c_seg - c_box) / np.maximum(d_sep, DEGENERATE_M)[:, None]
+    inside = _segment_meets_box(half, a, du) | (d_sep <= DEGENERATE_M)
+    d = d_sep.copy()
+    n = n_sep
+    if np.any(inside):
+        depth, cb_in, cs_in, n_in = _box_segment_penetration(half, a[inside], du[inside])
+        d[inside], c_box[inside], c_seg[inside], n[inside] = -depth, cb_in, cs_in, n_in
+    return d, _to_world(T_box, c_box), _to_world(T_box, c_seg), _to_world(T_box, n, direction=True)
+
+
+def _box_segment_separated(half: Array, a: Array, du: Array) -> tuple[Array, Array, Array]:
+    """Distance and closest points (box frame) of a box and disjoint segments: end points and 12 edges."""
+    ends = np.stack([a, a + du], axis=1)  # (n, 2, 3)
+    on_box_ends = point_box(ends, half)
+    e0, ed = _box_edges(half)
+    s, t = closest_segment_params(a[:, None, :], du[:, None, :], e0[None], ed[None])
+    on_seg = a[:, None, :] + s[..., None] * du[:, None, :]
+    on_edge = e0[None] + t[..., None] * ed[None]
+    box_pts = np.concatenate([on_box_ends, on_edge], axis=1)  # (n, 14, 3)
+    seg_pts = np.concatenate([ends, on_seg], axis=1)
+    dist = np.linalg.norm(seg_pts - box_pts, axis=-1)
+    k = np.argmin(dist, axis=1)
+    rows = np.arange(len(a))
+    return dist[rows, k], box_pts[rows, k], seg_pts[rows, k]
+
+
+def _segment_meets_box(half: Array, a: Array, du: Array) -> Array:
+    """Whether segments ``a + s du`` (box frame) meet the closed box (slab clipping)."""
+    lo, hi = np.zeros(len(a)), np.ones(len(a))
+    for i in range(3):
+        moving = np.abs(du[:, i]) > 0.0
+        step = np.where(moving, du[:, i], 1.0)
+        t1, t2 = (-half[i] - a[:, i]) / step, (half[i] - a[:, i]) / step
+        lo = np.where(moving, np.maximum(lo, np.minimum(t1, t2)), lo)
+        hi = np.where(moving, np.minimum(hi, np.maximum(t1, t2)), hi)
+        outside = ~moving & (np.abs(a[:, i]) > half[i])
+        hi = np.where(outside, -1.0, hi)
+    return lo <= hi
+
+
+def _box_segment_penetration(half: Array, a: Array, du: Array) -> tuple[Array, Array, Array, Array]:
+    """Penetration depth of a box and segments that meet it (box frame): SAT over the 6 candidate axes."""
+    m = len(a)
+    axes = np.concatenate([np.broadcast_to(np.eye(3), (m, 3, 3)), np.cross(du[:, None, :], np.eye(3)[None])], axis=1)
+    norms = np.linalg.norm(axes, axis=-1)
+    valid = norms > _PARALLEL_REL * np.maximum(np.linalg.norm(du, axis=-1, keepdims=True), 1.0)
+    axes = axes / np.where(valid, norms, 1.0)[..., None]
+    radius = _dot(np.abs(axes), half)
+    proj0, proj1 = _dot(axes, a[:, None, :]), _dot(axes, (a + du)[:, None, :])
+    push_plus = radius - np.minimum(proj0, proj1)  # move the segment along +axis until it clears the box
+    push_minus = np.maximum(proj0, proj1) + radius
+    depth_axes = np.where(valid, np.minimum(push_plus, push_minus), np.inf)
+    k = np.argmin(depth_axes, axis=1)
+    rows = np.arange(m)
+    depth = depth_axes[rows, k]
+    n = axes[rows, k] * np.where(push_plus[rows, k] <= push_minus[rows, k], 1.0, -1.0)[:, None]
+    c_seg = np.empty((m, 3))
+    face = k < 3
+    c_seg[face] = _deepest_segment_point(half, a[face], du[face], n[face], k[face])
+    c_box = c_seg + depth[:, None] * n
+    edge = ~face
+    if np.any(edge):
+        c_box[edge], c_seg[edge] = _support_edge_contact(half, a[edge], du[edge], n[edge], k[edge] - 3)
+    return depth, c_box, c_seg, n
+
+
+def _deepest_segment_point(half: Array, a: Array, du: Array, n: Array, axis: Array) -> Array:
+    """Point of each segment deepest along −n; for a segment parallel to the face, the middle of its part over
+    the face (the contact set after the separating translation)."""
+    s0, s1 = _dot(a, n), _dot(a + du, n)
+    s = np.where(s0 <= s1, 0.0, 1.0)
+    tie = np.abs(s1 - s0) <= 1e-12 * np.maximum(np.linalg.norm(du, axis=-1), 1.0)
+    if np.any(tie):
+        lo, hi = np.zeros(len(a)), np.ones(len(a))
+        for i in range(3):
+            moving = (np.abs(du[:, i]) > 0.0) & (axis != i)
+            step = np.where(moving, du[:, i], 1.0)
+            t1, t2 = (-half[i] - a[:, i]) / step, (half[i] - a[:, i]) / step
+            lo = np.where(moving, np.maximum(lo, np.minimum(t1, t2)), lo)
+            hi = np.where(moving, np.minimum(hi, np.maximum(t1, t2)), hi)
+        s = np.where(tie, np.clip(0.5 * (lo + hi), 0.0, 1.0), s)
+    return a + s[:, None] * du
+
+
+def _support_edge_contact(half: Array, a: Array, du: Array, n: Array, axis: Array) -> tuple[Array, Array]:
+    """Closest points of each segment and the box edge along ``axis`` that is extreme along +n."""
+    signs = np.where(n >= 0.0, 1.0, -1.0)
+    start = signs * half
+    rows = np.arange(len(a))
+    start[rows, axis] = -half[axis]
+    direction = np.zeros_like(a)
+    direction[rows, axis] = 2.0 * half[axis]
+    s, t = closest_segment_params(a, du, start, direction)
+    return start + t[:, None] * direction, a + s[:, None] * du
+
+
+def box_box(half_a: Array, T_a: Array, half_b: Array, T_b: Array) -> tuple[Array, Array, Array, Array]:
+    """Signed core distance (m) of two boxes; ``(d, c_a, c_b, n)`` with ``c_b − c_a = d n`` (world)."""
+    R = np.einsum("nji,njk->nik", T_a[:, :3, :3], T_b[:, :3, :3])  # B's axes in A's frame (columns)
+    c = _to_frame(T_a, T_b[:, :3, 3])
+    depth, n, k = _box_box_sat(half_a, half_b, R, c)
+    inside = depth >= 0.0
+    d, ca, cb = _box_box_separated(half_a, half_b, R, c)
+    nn = (cb - ca) / np.maximum(d, DEGENERATE_M)[:, None]
+    touching = ~inside & (d <= DEGENERATE_M)
+    nn[touching] = n[touching]
+    if np.any(inside):
+        d[inside] = -depth[inside]
+        ca[inside], cb[inside] = _box_box_contact(half_a, half_b, R[inside], c[inside], depth[inside], n[inside],
+                                                  k[inside])
+        nn[inside] = n[inside]
+    return d, _to_world(T_a, ca), _to_world(T_a, cb), _to_world(T_a, nn, direction=True)
+
+
+def _box_box_axes(R: Array) -> tuple[Array, Array]:
+    """The 15 SAT candidate axes (A's frame), unit where valid, and their validity."""
+    m = len(R)
+    ea = np.broadcast_to(np.eye(3), (m, 3, 3))
+    eb = np.swapaxes(R, 1, 2)  # rows: B's axes
+    cross = np.cross(ea[:, :, None, :], eb[:, None, :, :]).reshape(m, 9, 3)
+    axes = np.concatenate([ea, eb, cross], axis=1)
+    norms = np.linalg.norm(axes, axis=-1)
+    valid = norms > _PARALLEL_REL
+    return axes / np.where(valid, norms, 1.0)[..., None], valid
+
+
+def _box_box_sat(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Array, Array, Array]:
+    """Largest-overlap-free depth over the 15 axes: ≥ 0 when the boxes meet (then it is the penetration
+    depth), < 0 when some axis separates them. Also the axis (B moves along it) and its index."""
+    axes, valid = _box_box_axes(R)
+    r_a = _dot(np.abs(axes), half_a)
+    r_b = np.einsum("nkj,j->nk", np.abs(np.einsum("nki,nij->nkj", axes, R)), half_b)
+    centre = _dot(axes, c[:, None, :])
+    push_plus = r_a + r_b - centre
+    push_minus = r_a + r_b + centre
+    depth_axes = np.where(valid, np.minimum(push_plus, push_minus), np.inf)
+    k = np.argmin(depth_axes, axis=1)
+    rows = np.arange(len(R))
+    n = axes[rows, k] * np.where(push_plus[rows, k] <= push_minus[rows, k], 1.0, -1.0)[:, None]
+    return depth_axes[rows, k], n, k
+
+
+def _box_box_separated(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Array, Array, Array]:
+    """Distance and closest points (A's frame) of disjoint boxes: vertices against boxes, edges against edges."""
+    vb = c[:, None, :] + np.einsum("nij,kj->nki", R, _VERTEX_SIGNS * half_b)  # B's vertices in A's frame
+    on_a = point_box(vb, half_a)
+    va = _VERTEX_SIGNS * half_a
+    va_in_b = np.einsum("nji,nkj->nki", R, va[None] - c[:, None, :])
+    on_b = c[:, None, :] + np.einsum("nij,nkj->nki", R, point_box(va_in_b, half_b))
+    ea0, ead = _box_edges(half_a)
+    eb0, ebd = _box_edges(half_b)
+    b0 = c[:, None, :] + np.einsum("nij,kj->nki", R, eb0)
+    bd = np.einsum("nij,kj->nki", R, ebd)
+    s, t = closest_segment_params(ea0[None, :, None, :], ead[None, :, None, :], b0[:, None, :, :], bd[:, None, :, :])
+    pa_edge = (ea0[None, :, None, :] + s[..., None] * ead[None, :, None, :]).reshape(len(R), 144, 3)
+    pb_edge = (b0[:, None, :, :] + t[..., None] * bd[:, None, :, :]).reshape(len(R), 144, 3)
+    pa = np.concatenate([on_a, np.broadcast_to(va, (len(R), 8, 3)), pa_edge], axis=1)
+    pb = np.concatenate([vb, on_b, pb_edge], axis=1)
+    dist = np.linalg.norm(pb - pa, axis=-1)
+    k = np.argmin(dist, axis=1)
+    rows = np.arange(len(R))
+    return dist[rows, k], pa[rows, k], pb[rows, k]
+
+
+def _box_box_contact(half_a: Array, half_b: Array, R: Array, c: Array, depth: Array, n: Array,
+                     k: Array) -> tuple[Array, Array]:
+    """Witness points (A's frame) of penetrating boxes: the deepest vertex for a face axis (on A's face when a
+    vertex of B lies over it, else A's vertex in B's face), the support edges' closest points for an edge axis."""
+    vb = c[:, None, :] + np.einsum("nij,kj->nki", R, _VERTEX_SIGNS * half_b)
+    va = np.broadcast_to(_VERTEX_SIGNS * half_a, vb.shape)
+    pb = vb[np.arange(len(R)), np.argmin(_dot(vb, n[:, None, :]), axis=1)]
+    pa_face_b = va[np.arange(len(R)), np.argmax(_dot(va, n[:, None, :]), axis=1)]
+    pa = np.where((k < 3)[:, None], pb + depth[:, None] * n, pa_face_b)
+    pb = np.where((k < 3)[:, None], pb, pa_face_b - depth[:, None] * n)
+    edge = k >= 6
+    if np.any(edge):
+        i, j = (k[edge] - 6) // 3, (k[edge] - 6) % 3
+        pa[edge], pb[edge] = _box_box_edge_contact(half_a, half_b, R[edge], c[edge], n[edge], i, j)
+    return pa, pb
+
+
+def _box_box_edge_contact(half_a: Array, half_b: Array, R: Array, c: Array, n: Array, i: Array,
+                          j: Array) -> tuple[Array, Array]:
+    """Closest points of A's edge along axis i extreme along +n and B's edge along its axis j extreme along −n."""
+    rows = np.arange(len(R))
+    start_a = np.where(n >= 0.0, 1.0, -1.0) * half_a
+    start_a[rows, i] = -half_a[i]
+    dir_a = np.zeros_like(n)
+    dir_a[rows, i] = 2.0 * half_a[i]
+    n_b = np.einsum("nji,nj->ni", R, n)  # n in B's frame
+    local_b = np.where(n_b >= 0.0, -1.0, 1.0) * half_b
+    local_b[rows, j] = -half_b[j]
+    dir_b_local = np.zeros_like(n)
+    dir_b_local[rows, j] = 2.0 * half_b[j]
+    start_b = c + np.einsum("nij,nj->ni", R, local_b)
+    dir_b = np.einsum("nij,nj->ni", R, dir_b_local)
+    s, t = closest_segment_params(start_a, dir_a, start_b, dir_b)
+    return start_a + s[:, None] * dir_a, start_b + t[:, None] * dir_b
