@@ -24,20 +24,25 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from enum import Enum
 from pathlib import Path
 
 import numpy as np
 
 from lut.grid import Grid, GridConfig, load_grid, phase_time_shift_s
-from lut.journal import Journal
+from lut.journal import Journal, JournalStatus, journal_status
+from lut.output_paths import Output, check_outputs
 from lut.point_worker import load_npz, save_npz
 from lut.records import Record, failed_record
-from lut.store import STATUS_CODES, model_hash, write_table
+from lut.store import STATUS_CODES, Table, model_hash, write_table
 from planner.errors import LutgenError
 from planner.scenario import Scenario, load_scenario
 from planner.target import TargetState
 
 DEFAULT_SOLVER = "lut.point_worker:solve_point"
+
+
+MAX_POINT_TIMEOUT_S = 7 * 86400.0  # a longer per-point limit is surely a typo (s)
 
 
 @dataclass
@@ -46,9 +51,15 @@ class BuildOptions:
     backend: str = "loky"  # or "dask"
     scheduler: str | None = None  # dask: tcp://HOST:PORT
     point_timeout_s: float = 900.0
-    resume: bool = False
+    resume: bool = False  # continue the journal; a complete table is left as it is
+    force: bool = False  # start over: an existing table (replaced when the new one is complete) or journal
     solver: str = DEFAULT_SOLVER  # module:function run in the point process
     progress: bool = True
+
+
+class BuildOutcome(Enum):
+    BUILT = "built"  # points were solved (or all were journaled) and the table written
+    ALREADY_COMPLETE = "already complete"  # --resume of a complete table: nothing solved, nothing written
 
 
 @dataclass
@@ -59,6 +70,7 @@ class BuildSummary:
     solved_now: int
     wall_time_s: float
     failures: list[str] = field(default_factory=list)
+    outcome: BuildOutcome = BuildOutcome.BUILT
 
 
 def table_hash(scenario: Scenario) -> str:
@@ -132,9 +144,10 @@ def _parallel(options: BuildOptions):  # noqa: ANN202
         except ImportError:
             raise LutgenError("--backend dask: the 'distributed' package is missing (pip install 'lutgen[dask]')") \
                 from None
-        if not options.scheduler:
-            raise LutgenError("--backend dask needs --scheduler tcp://HOST:PORT")
-        client = Client(options.scheduler)
+        try:
+            client = Client(options.scheduler, timeout="10s")
+        except (OSError, ValueError) as exc:
+            raise LutgenError(f"--scheduler {options.scheduler}: cannot connect ({exc})") from None
         # parallel_config resolves joblib's lazily registered external backends ("dask"); Parallel(backend=…)
         # alone does not
         with joblib.parallel_config(backend="dask"):
@@ -142,31 +155,115 @@ def _parallel(options: BuildOptions):  # noqa: ANN202
     raise LutgenError(f"--backend: must be loky or dask, got {options.backend!r}")
 
 
-def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptions,
-              on_record: Callable[[Record], None] | None = None) -> BuildSummary:
-    """Build (or resume) the table of ``grid_path`` into ``table_path``."""
-    import joblib
-
-    t_start = time.perf_counter()
-    table_path = Path(table_path)
-    config, scenario, grid = prepare(grid_path)
-    if options.point_timeout_s <= 0:
-        raise LutgenError(f"--point-timeout: must be > 0, got {options.point_timeout_s}")
+def check_options(options: BuildOptions) -> None:
+    """Raise :class:`LutgenError` for an option value no build can use (before any file is touched)."""
+    if options.resume and options.force:
+        raise LutgenError("--resume and --force exclude each other: continue the journal, or start over")
+    if not (np.isfinite(options.point_timeout_s) and 0 < options.point_timeout_s <= MAX_POINT_TIMEOUT_S):
+        raise LutgenError(f"--point-timeout: must be in (0, {MAX_POINT_TIMEOUT_S:g}] s, got {options.point_timeout_s}")
     if options.jobs < 1:
         raise LutgenError(f"-j/--jobs: must be >= 1, got {options.jobs}")
-    mhash = table_hash(scenario)
+    if options.backend not in ("loky", "dask"):
+        raise LutgenError(f"--backend: must be loky or dask, got {options.backend!r}")
+    if options.backend == "dask" and not options.scheduler:
+        raise LutgenError("--backend dask needs --scheduler tcp://HOST:PORT")
+
+
+def _existing_work(table_path: Path, jpath: Path, options: BuildOptions, mhash: str, config: GridConfig) -> bool:
+    """Decide what an existing journal or table means for this build; True when the table is complete and
+    ``--resume`` leaves it as it is. Raises :class:`LutgenError` where the build must not start."""
+    status = journal_status(jpath)
+    if status is JournalStatus.IN_USE:
+        raise LutgenError(f"{jpath}: another build of {table_path} is running (its journal is locked); "
+                          "wait for it, or stop it first")
+    if status is JournalStatus.INTERRUPTED:
+        if options.force:
+            jpath.unlink()
+        elif not options.resume:
+            raise LutgenError(f"{jpath} exists: an earlier build of {table_path} was interrupted; rerun with "
+                              "--resume to continue it, or --force to start over")
+        return False
+    if not table_path.exists() or options.force:
+        return False
+    if not options.resume:
+        raise LutgenError(f"{table_path} exists: --force to build it again (the old table stays until the new "
+                          "one is complete), or another --out")
+    table = Table.open(table_path)
+    if table.model_hash != mhash or table.attrs.get("config_text") != config.text:
+        raise LutgenError(f"{table_path} was built from another grid config, robot, target or scenario: nothing "
+                          "to resume; --force to build it again")
+    if table.counts()["pending"]:
+        raise LutgenError(f"{table_path} has pending points but no journal to resume; --force to build it again")
+    return True
+
+
+def _complete_summary(table_path: Path, t_start: float) -> BuildSummary:
+    table = Table.open(table_path)
+    reasons = table.field("failure_reason")
+    failures = [f"point {p}: {reasons[p]}" for p in np.flatnonzero(table.status == STATUS_CODES["failed"])]
+    return BuildSummary(table_path, table.n_points, table.counts(), 0, time.perf_counter() - t_start, failures,
+                        BuildOutcome.ALREADY_COMPLETE)
+
+
+def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptions,
+              on_record: Callable[[Record], None] | None = None) -> BuildSummary:
+    """Build (or resume) the table of ``grid_path`` into ``table_path``.
+
+    Everything that can refuse the build (options, configs, output paths, an existing table or journal)
+    is checked before a file is created; a build that stops before its first record leaves no journal.
+    """
+    t_start = time.perf_counter()
+    table_path = Path(table_path)
+    check_options(options)
+    config, scenario, grid = prepare(grid_path)
     jpath = journal_path(table_path)
-    if jpath.exists() and not options.resume:
-        raise LutgenError(f"{jpath} exists (an earlier build was interrupted): rerun with --resume to continue it, "
-                          "or delete it to start over")
-    journal = Journal(jpath, {"model_hash": mhash, "grid_text": config.text})
+    inputs = [grid_path, config.scenario_path, scenario.robot.urdf_path, scenario.target.source]
+    check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
+    mhash = table_hash(scenario)
+    if _existing_work(table_path, jpath, options, mhash, config):
+        return _complete_summary(table_path, t_start)
+    parallel, client = _parallel(options)
+    try:
+        journal = Journal(jpath, {"model_hash": mhash, "grid_text": config.text})
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
+    try:
+        done, solved_now = _solve_layers(grid, config, options, journal, parallel, on_record)
+    except BaseException:
+        if journal.started and not journal.records():
+            journal.discard()  # nothing was solved: leave no journal that would ask for --resume
+        raise
+    finally:
+        journal.close()
+        if client is not None:
+            client.close()
+    write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
+                grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
+                records=done, n_points=grid.n_points,
+                scenario_path=os.path.relpath(config.scenario_path, table_path.absolute().parent))
+    counts = {name: sum(1 for r in done.values() if r["status"] == name) for name in STATUS_CODES}
+    counts["pending"] = grid.n_points - len(done)
+    if counts["pending"] == 0:
+        # the table now holds every point durably; a leftover journal would only block the next build
+        jpath.unlink(missing_ok=True)
+    failures = [f"point {p}: {r['failure_reason']}" for p, r in sorted(done.items()) if r["status"] == "failed"]
+    return BuildSummary(table_path, grid.n_points, counts, solved_now, time.perf_counter() - t_start, failures)
+
+
+def _solve_layers(grid: Grid, config: GridConfig, options: BuildOptions, journal: Journal, parallel,  # noqa: ANN001
+                  on_record: Callable[[Record], None] | None) -> tuple[dict[int, Record], int]:
+    """Solve every point the journal does not hold yet, layer by layer; the records of all points, and how
+    many were solved now."""
+    import joblib
+
     done = journal.records()
     order = grid.continuation_order()
     todo = sum(1 for p, _ in order if p not in done)
     bar = _progress(len(order), len(order) - todo, options.progress)
     solved_now = 0
     scenario_path = str(config.scenario_path)
-    parallel, client = _parallel(options)
     try:
         for layer in _layers(order):
             tasks = []
@@ -192,20 +289,7 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
                 bar.update(rec)
     finally:
         bar.close()
-        journal.close()
-        if client is not None:
-            client.close()
-    write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
-                grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
-                records=done, n_points=grid.n_points,
-                scenario_path=os.path.relpath(config.scenario_path, table_path.absolute().parent))
-    counts = {name: sum(1 for r in done.values() if r["status"] == name) for name in STATUS_CODES}
-    counts["pending"] = grid.n_points - len(done)
-    if counts["pending"] == 0:
-        # the table now holds every point durably; a leftover journal would only block the next build
-        jpath.unlink(missing_ok=True)
-    failures = [f"point {p}: {r['failure_reason']}" for p, r in sorted(done.items()) if r["status"] == "failed"]
-    return BuildSummary(table_path, grid.n_points, counts, solved_now, time.perf_counter() - t_start, failures)
+    return done, solved_now
 
 
 def _phase_shift(grid: Grid, parent: int, point: int) -> float:

@@ -1,8 +1,10 @@
 """The ``lutgen`` command line.
 
-Errors a user can cause (bad config, argument, file, target state) are printed as one line
-``error: …`` on stderr with exit code 1, never a traceback. Warnings (e.g. compiled Functions falling back
-to interpreted ones, :mod:`planner.compiled`) are one line ``warning: …`` too.
+Errors a user can cause (bad config, option value, file, target state) are printed as one line
+``error: …`` on stderr with exit code 1, never a traceback; a malformed command line (click's usage
+errors) exits 64; plan and query exit 2 for an infeasible plan (:class:`lut.exit_codes.ExitCode`).
+Warnings (e.g. compiled Functions falling back to interpreted ones, :mod:`planner.compiled`) are one line
+``warning: …`` too.
 """
 
 from __future__ import annotations
@@ -15,21 +17,48 @@ from typing import Any
 
 import click
 
+from lut.exit_codes import ExitCode
 from planner.errors import LutgenError
+
+MAX_MESSAGE_CHARS = 500  # an error quoting a huge value is cut here: one readable line
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line (newlines become spaces), at most :data:`MAX_MESSAGE_CHARS` characters."""
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= MAX_MESSAGE_CHARS else flat[:MAX_MESSAGE_CHARS - 1] + "…"
 
 
 def user_errors(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Turn :class:`LutgenError` into a one-line message and exit code 1."""
+    """Turn :class:`LutgenError` into a one-line message and exit code :attr:`ExitCode.BAD_INPUT`."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
         except LutgenError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(1)
+            click.echo(f"error: {one_line(str(exc))}", err=True)
+            sys.exit(ExitCode.BAD_INPUT)
 
     return wrapper
+
+
+class LutgenGroup(click.Group):
+    """The ``lutgen`` group: a malformed command line exits :attr:`ExitCode.USAGE`, never 2 (= infeasible)."""
+
+    def make_context(self, *args: Any, **kwargs: Any) -> click.Context:
+        try:
+            return super().make_context(*args, **kwargs)
+        except click.UsageError as exc:
+            exc.exit_code = ExitCode.USAGE
+            raise
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except click.UsageError as exc:
+            exc.exit_code = ExitCode.USAGE
+            raise
 
 
 def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
@@ -37,7 +66,7 @@ def _one_line_warning(message: Warning | str, category: type[Warning], filename:
     return f"warning: {message}\n"
 
 
-@click.group()
+@click.group(cls=LutgenGroup)
 @click.version_option(package_name="lutgen")
 def main() -> None:
     """lutgen: plan grasps of a tumbling satellite with a free-floating 7-DOF arm.
@@ -166,6 +195,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     if not 0 < verify_step_s <= 0.02:
         raise LutgenError(f"--verify-step-s: must be in (0, 0.02], got {verify_step_s}")
     sc = load_scenario(scenario_path)
+    check_plan_outputs([scenario_path, sc.robot.urdf_path, sc.target.source], out_path, csv_path)
     sc = replace(sc, costs=_cost_weights(sc.costs, costs))
     state = target_state_from_options(sc, attitude, omega_deg_s, spin_rate_deg_s)
     click.echo(f"planning {sc.name}: building the problems…", err=True)
@@ -187,8 +217,18 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
         click.echo(f"wrote {csv_path}")
     if not report.feasible:
         click.echo("INFEASIBLE: " + "; ".join(report.violations), err=True)
-        sys.exit(2)
+        sys.exit(ExitCode.INFEASIBLE)
     click.echo("FEASIBLE")
+
+
+def check_plan_outputs(inputs: list, out_path: str | None, csv_path: str | None) -> None:
+    """Refuse (before solving) a plan JSON or CSV path that is an input, a table, or in a missing folder."""
+    from pathlib import Path
+
+    from lut.output_paths import Output, check_outputs
+
+    outputs = [Output(option, Path(path)) for option, path in (("--out", out_path), ("--csv", csv_path)) if path]
+    check_outputs(inputs, outputs)
 
 
 def _plan_table(result, report) -> list[str]:  # noqa: ANN001
@@ -220,21 +260,30 @@ def _plan_table(result, report) -> list[str]:  # noqa: ANN001
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT", help="Dask distributed scheduler address.")
 @click.option("--point-timeout", "point_timeout_s", type=float, default=900.0, show_default=True,
               help="Wall-time limit per grid point (s); a point past it is recorded as failed.")
-@click.option("--resume", is_flag=True, help="Continue an interrupted build from its journal.")
+@click.option("--resume", is_flag=True,
+              help="Continue an interrupted build from its journal; a complete table is left as it is.")
+@click.option("--force", is_flag=True,
+              help="Build again although OUT (or an interrupted build's journal) exists; OUT is replaced only "
+                   "when the new table is complete.")
 @click.option("--no-progress", is_flag=True, help="No progress bar (logs, CI).")
 @user_errors
 def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str | None, point_timeout_s: float,
-          resume: bool, no_progress: bool) -> None:
+          resume: bool, force: bool, no_progress: bool) -> None:
     """Solve every point of GRID_PATH and store the verified plans in an HDF5 look-up table.
 
     Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
+    An existing OUT is never overwritten without --force.
     """
-    from lut.build import BuildOptions, run_build
+    from lut.build import BuildOptions, BuildOutcome, run_build
 
     options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
-                           resume=resume, progress=not no_progress)
+                           resume=resume, force=force, progress=not no_progress)
     summary = run_build(grid_path, out_path, options)
     c = summary.counts
+    if summary.outcome is BuildOutcome.ALREADY_COMPLETE:
+        click.echo(f"{summary.table} is complete ({summary.n_points} points — {c['feasible']} feasible, "
+                   f"{c['infeasible']} infeasible, {c['failed']} failed): nothing to resume, nothing changed")
+        return
     click.echo(f"built {summary.table}: {summary.n_points} points — {c['feasible']} feasible, "
                f"{c['infeasible']} infeasible, {c['failed']} failed, {c['pending']} pending; "
                f"{summary.solved_now} solved in {summary.wall_time_s:.0f} s")
@@ -332,7 +381,10 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     quat = _floats(attitude, 4, "--attitude")
     omega = np.radians(_floats(omega_deg_s, 3, "--omega-deg-s"))
     state = TargetState(np.asarray(quat), omega)
+    check_plan_outputs([table_path, *([scenario_path] if scenario_path else [])], out_path, csv_path)
     tq = TableQuery(table_path, scenario_path)
+    check_plan_outputs([table_path, tq.scenario_path, tq.scenario.robot.urdf_path, tq.scenario.target.source],
+                       out_path, csv_path)
     result = tq.query(state, budget_s=budget_s, refine=refine)
     for line in _plan_table(result.plan, result.report):
         click.echo(line)
@@ -351,7 +403,7 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
         click.echo(f"wrote {csv_path}")
     if not result.report.feasible:
         click.echo("INFEASIBLE: " + "; ".join(result.report.violations), err=True)
-        sys.exit(2)
+        sys.exit(ExitCode.INFEASIBLE)
     click.echo("FEASIBLE")
 
 

@@ -71,9 +71,13 @@ def preview(plan_path: str, out_html: str, max_frames: int) -> None:
 
     Open it in a browser: play/pause, time slider, speed; OUT.html?t=20 opens at t = 20 s.
     """
+    from pathlib import Path
+
+    from lut.output_paths import Output, check_outputs
     from lut.plan_file import load_plan
 
     doc = load_plan(plan_path)  # before importing plotly and pinocchio: a bad path fails fast
+    check_outputs([plan_path], [Output("-o/--out", Path(out_html))])
     from lut.preview import write_preview
 
     try:

@@ -3,9 +3,12 @@
 A build solves points for hours and must survive ``kill -9`` (or a power cut) at any moment, then
 resume. Every finished point is appended with ONE ``os.write`` of a self-contained frame followed by
 ``os.fsync``; a frame torn by a crash mid-write fails its length/checksum test, is ignored on read and
-cut away before the next append. The journal is created atomically (temp file + rename), so an existing
-journal always starts with a complete header. An exclusive ``flock`` (POSIX) keeps two builds from
-appending to the same journal at once; the kernel drops it when the process dies.
+cut away before the next append. An exclusive ``flock`` (POSIX) keeps two builds from appending to the
+same journal at once; the kernel drops it when the process dies. The journal is created *under* that
+lock (``O_CREAT`` on the one path, then the lock, then the header), so of two builds starting at the
+same moment exactly one gets it and the other is refused; a journal that holds only the beginning of
+its own header (a crash while creating it) holds no records either and is started again. :func:`journal_status` tells a
+running build's journal from an interrupted one's.
 
 File format (version 1, all integers little-endian)::
 
@@ -37,6 +40,7 @@ import hashlib
 import json
 import os
 import struct
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -180,48 +184,93 @@ def _header_digest(header: dict[str, str]) -> str:
     return hashlib.sha256(json.dumps(header, sort_keys=True).encode("utf-8")).hexdigest()[:12]
 
 
+class JournalStatus(Enum):
+    """What is at a journal's path: nothing, a running build's journal, or an interrupted build's."""
+
+    ABSENT = "absent"
+    IN_USE = "in use"  # a running build holds its lock
+    INTERRUPTED = "interrupted"  # unlocked: its build stopped before the table was complete
+
+
+def journal_status(path: Path) -> JournalStatus:
+    """The :class:`JournalStatus` of ``path`` (probes the lock without taking it for longer than the probe)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return JournalStatus.ABSENT
+    try:
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                return JournalStatus.IN_USE
+        return JournalStatus.INTERRUPTED
+    finally:
+        os.close(fd)
+
+
 class Journal:
     """An append-only, crash-safe journal of point records (see the module docstring for the format).
 
     ``header`` identifies what the journal belongs to (config hash etc.); opening an existing journal
     with a different header raises :class:`~lut.store.TableError`. A record must hold an int
     ``"point"`` and a str ``"status"``; :meth:`records` returns the last record of every point.
-    ``ignored_bytes`` says how much of a torn tail was cut away on open.
+    ``ignored_bytes`` says how much of a torn tail was cut away on open; ``started`` is True when this
+    open wrote the header (a new journal), False when it continues an existing one.
     """
 
     def __init__(self, path: Path, header: dict[str, str]) -> None:
         self.path = Path(path)
         self.header = {str(k): str(v) for k, v in header.items()}
         self.ignored_bytes = 0
+        self.started = False
         self._records: dict[int, dict[str, Any]] = {}
         self._fd: int | None = None
-        if not self.path.exists() or self.path.stat().st_size == 0:
-            self._create()
-        fd = os.open(self.path, os.O_RDWR | os.O_APPEND)
+        fd = self._open_locked()
         try:
-            if fcntl is not None:
-                try:
-                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                except BlockingIOError:
-                    raise _table_error(f"journal {self.path} is in use by another build") from None
             self._load(fd)
         except BaseException:
             os.close(fd)
             raise
         self._fd = fd
 
-    def _create(self) -> None:
-        tmp = self.path.with_name(self.path.name + ".new")
-        with open(tmp, "wb") as fh:
-            fh.write(MAGIC + encode_frame(encode_record(self.header)))
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, self.path)
+    def _open_locked(self) -> int:
+        """A descriptor of the file now at ``path`` (created if missing), under an exclusive lock."""
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
+            if fcntl is not None:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    os.close(fd)
+                    raise _table_error(f"journal {self.path} is in use by another build (still running)") from None
+            try:
+                if os.stat(self.path).st_ino == os.fstat(fd).st_ino:
+                    return fd
+            except FileNotFoundError:
+                pass
+            os.close(fd)  # a finishing build removed or replaced the file between our open and lock: again
+
+    def _head(self) -> bytes:
+        """The bytes a journal with this header starts with."""
+        return MAGIC + encode_frame(encode_record(self.header))
+
+    def _start(self, fd: int) -> None:
+        """Write the header into an empty (or torn-while-created) journal, durably."""
+        os.ftruncate(fd, 0)
+        data = self._head()
+        if os.write(fd, data) != len(data):
+            raise OSError(f"short write to {self.path}")
+        os.fsync(fd)
         _fsync_dir(self.path.parent)
+        self.started = True
 
     def _load(self, fd: int) -> None:
         size = os.fstat(fd).st_size
         data = os.pread(fd, size, 0) if hasattr(os, "pread") else self.path.read_bytes()
+        if self._head().startswith(data):  # new, or torn while this same header was written: no records yet
+            self._start(fd)
+            return
         if not data.startswith(MAGIC):
             raise _table_error(f"{self.path} is not a lutgen journal (bad magic bytes)")
         payloads, end = read_frames(data, len(MAGIC))
@@ -268,6 +317,14 @@ class Journal:
     def records(self) -> dict[int, dict[str, Any]]:
         """The last record of every point journaled so far (a fresh dict; records are decoded copies)."""
         return dict(self._records)
+
+    def discard(self) -> None:
+        """Close and delete the journal (a build that stopped before its first record leaves nothing behind)."""
+        if self._fd is not None:
+            with contextlib.suppress(FileNotFoundError):
+                if os.stat(self.path).st_ino == os.fstat(self._fd).st_ino:
+                    self.path.unlink()
+        self.close()
 
     def close(self) -> None:
         """Release the file (and its lock). Idempotent."""

@@ -7,60 +7,28 @@ table's grid, schema and model hash, which are the real ones of ``configs/grids/
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import h5py
 import pytest
 
-from lut.build import prepare, table_hash
-from lut.store import write_table
-from tests.support.fake_solver import solve as fake_solve
-
-ROOT = Path(__file__).resolve().parents[1]
-CI_GRID = ROOT / "configs" / "grids" / "ci.toml"
-LUTGEN = str(Path(sys.executable).parent / "lutgen")
-ON_GRID_ATTITUDE = "1,0,0,0"  # scenario II's default: flat spin about body z = orbital z, phase 0
-ON_GRID_OMEGA = "0,0,3.75"
-
-
-def _write_fake_table(path: Path, *, model_hash: str | None = None) -> None:
-    config, scenario, grid = prepare(CI_GRID)
-    records = {}
-    for p in range(grid.n_points):
-        state = grid.state(p)
-        records[p] = fake_solve(str(config.scenario_path), p, state.attitude_wxyz, state.omega_body_rad_s, None, 0.0)
-    write_table(path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)), grid_kind=config.kind,
-                config_text=config.text, scenario_text=scenario.text,
-                model_hash=model_hash or table_hash(scenario), records=records, n_points=grid.n_points,
-                scenario_path=os.path.relpath(config.scenario_path, path.parent))
+from tests.support.cli import ON_GRID_ATTITUDE, ON_GRID_OMEGA, ROOT, assert_one_line_error, lutgen, write_fake_table
 
 
 @pytest.fixture(scope="module")
 def table(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("query") / "ci.h5"
-    _write_fake_table(path)
+    write_fake_table(path)
     return path
 
 
-def _query(table: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([LUTGEN, "query", str(table), *args], capture_output=True, text=True, timeout=300)
-
-
-def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> None:
-    assert proc.returncode == 1, (proc.returncode, proc.stdout, proc.stderr)
-    assert "Traceback" not in proc.stderr
-    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
-    for w in words:
-        assert w in lines[0], (w, lines[0])
+def _query(table: Path, *args: str):  # noqa: ANN202
+    return lutgen("query", table, *args)
 
 
 def test_state_outside_the_grid_names_the_axis(table):
     proc = _query(table, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", "0,0,6")
-    _assert_one_line_error(proc, "outside the grid", "spin_rate_deg_s", "6")
+    assert_one_line_error(proc, "outside the grid", "spin_rate_deg_s", "6")
 
 
 @pytest.mark.parametrize("option,value,words", [
@@ -72,20 +40,20 @@ def test_state_outside_the_grid_names_the_axis(table):
 def test_bad_target_state_is_refused(table, option, value, words):
     args = {"--attitude": ON_GRID_ATTITUDE, "--omega-deg-s": ON_GRID_OMEGA, option: value}
     proc = _query(table, *[x for kv in args.items() for x in kv])
-    _assert_one_line_error(proc, *words)
+    assert_one_line_error(proc, *words)
 
 
 def test_table_built_for_another_model_is_refused(tmp_path):
     path = tmp_path / "other.h5"
-    _write_fake_table(path, model_hash="0" * 64)
+    write_fake_table(path, model_hash="0" * 64)
     proc = _query(path, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA)
-    _assert_one_line_error(proc, "another robot/target/scenario", "000000000000")
+    assert_one_line_error(proc, "another robot/target/scenario", "000000000000")
 
 
 def test_a_scenario_other_than_the_tables_is_refused(table):
     proc = _query(table, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA,
                   "--scenario", str(ROOT / "configs" / "scenarios" / "scenario_I.toml"))
-    _assert_one_line_error(proc, "another robot/target/scenario")
+    assert_one_line_error(proc, "another robot/target/scenario")
 
 
 def test_truncated_table_is_refused(table, tmp_path):
@@ -93,14 +61,14 @@ def test_truncated_table_is_refused(table, tmp_path):
     cut = tmp_path / "cut.h5"
     cut.write_bytes(data[: len(data) // 2])
     proc = _query(cut, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA)
-    _assert_one_line_error(proc, str(cut), "corrupt")
+    assert_one_line_error(proc, str(cut), "corrupt")
 
 
 def test_garbage_file_is_refused(tmp_path):
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"this is not an HDF5 file\n" * 100)
     proc = _query(bad, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA)
-    _assert_one_line_error(proc, str(bad))
+    assert_one_line_error(proc, str(bad))
 
 
 def test_unknown_schema_version_is_refused(table, tmp_path):
@@ -109,14 +77,14 @@ def test_unknown_schema_version_is_refused(table, tmp_path):
     with h5py.File(newer, "r+") as f:
         f.attrs["schema_version"] = 99
     proc = _query(newer, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA)
-    _assert_one_line_error(proc, "schema version 99")
+    assert_one_line_error(proc, "schema version 99")
 
 
 def test_missing_table_is_refused(tmp_path):
     proc = _query(tmp_path / "nope.h5", "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA)
-    _assert_one_line_error(proc, "no such table")
+    assert_one_line_error(proc, "no such table")
 
 
 def test_non_positive_budget_is_refused(table):
     proc = _query(table, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA, "--budget-s", "0")
-    _assert_one_line_error(proc, "--budget-s")
+    assert_one_line_error(proc, "--budget-s")

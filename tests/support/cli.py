@@ -1,0 +1,49 @@
+"""Running the ``lutgen`` CLI in a subprocess, and the checks every bad-input test makes of its answer."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from lut.build import prepare, table_hash
+from lut.store import write_table
+from tests.support.fake_solver import solve as fake_solve
+
+ROOT = Path(__file__).resolve().parents[2]
+CI_GRID = ROOT / "configs" / "grids" / "ci.toml"
+LUTGEN = str(Path(sys.executable).parent / "lutgen")
+ON_GRID_ATTITUDE = "1,0,0,0"  # scenario II's default: flat spin about body z = orbital z, phase 0
+ON_GRID_OMEGA = "0,0,3.75"
+ON_GRID_STATE = ("--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", ON_GRID_OMEGA)
+
+
+def lutgen(*args: str | Path, timeout_s: float = 300.0, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """``lutgen ARGS…`` with its output captured."""
+    return subprocess.run([LUTGEN, *map(str, args)], capture_output=True, text=True, timeout=timeout_s, cwd=cwd)
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> str:
+    """Exit 1, no traceback, exactly one stderr line ``error: …`` holding every word; returns that line."""
+    assert proc.returncode == 1, (proc.returncode, proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+def write_fake_table(path: Path, *, model_hash: str | None = None) -> None:
+    """A table of ``configs/grids/ci.toml`` with the real grid, schema and model hash, its records from the
+    fast stand-in solver (no NLP): good for every check made before anything is interpolated or solved."""
+    config, scenario, grid = prepare(CI_GRID)
+    records = {}
+    for p in range(grid.n_points):
+        state = grid.state(p)
+        records[p] = fake_solve(str(config.scenario_path), p, state.attitude_wxyz, state.omega_body_rad_s, None, 0.0)
+    write_table(path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)), grid_kind=config.kind,
+                config_text=config.text, scenario_text=scenario.text,
+                model_hash=model_hash or table_hash(scenario), records=records, n_points=grid.n_points,
+                scenario_path=os.path.relpath(config.scenario_path, path.parent))
