@@ -23,8 +23,11 @@ import numpy as np
 from lut.build import DEFAULT_SOLVER, run_point, table_hash
 from lut.grid import Grid, load_grid_text
 from lut.records import PARAMETER_KEYS, Record, warm_start_from_record
-from lut.store import Table, TableError
+from lut.store import STATUS_CODES, Table, TableError
+from planner.bspline import UniformCubicBSpline
 from planner.errors import LutgenError
+from planner.phases.stabilization import stabilization_spline
+from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan import GraspPlan, Planner
 from planner.scenario import Scenario, load_scenario
 from planner.target import TargetState
@@ -68,10 +71,11 @@ class TableQuery:
         self.grid = Grid(config, self.scenario.target.inertia_body_kg_m2, self.scenario.target_state.as_state())
         if self.grid.n_points != self.table.n_points:
             raise TableError(f"{table_path}: grid has {self.grid.n_points} points but the table {self.table.n_points}")
+        self.scenario_path = Path(path)
+        check_parameters(self.table, parameter_shapes(self.scenario))
+        self.planner = Planner(self.scenario)
         self.records = {p: self.table.record(p) for p in range(self.table.n_points)}
         self.feasible = [p for p, r in self.records.items() if r.get("status") == "feasible"]
-        self.scenario_path = Path(path)
-        self.planner = Planner(self.scenario)
         self.refine_failure = ""
         self.load_time_s = time.perf_counter() - t0
 
@@ -188,6 +192,36 @@ class TableQuery:
             warm["status"] = "feasible"
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
                          max_wall_s=max(1.0, budget_s / 4))
+
+
+def parameter_shapes(scenario: Scenario) -> dict[str, tuple[int, ...]]:
+    """Per-point shape of every parameter a query interpolates, for ``scenario``'s plans."""
+    n = scenario.robot.n_joints
+    approach = UniformCubicBSpline(scenario.approach.n_vertices, scenario.phases.approach_s)
+    return {"approach_params": (n * approach.n_free_per_joint,), "base_offset_m": (2,), "start_delay_s": (),
+            "q_tracking": (len(TRACKING_NODES), n),
+            "stabilization_params": (n * stabilization_spline(scenario).n_free_per_joint,)}
+
+
+def check_parameters(table: Table, shapes: dict[str, tuple[int, ...]]) -> None:
+    """Raise :class:`TableError` unless every parameter dataset has the scenario's shape, holds floats, and is
+    finite at every feasible point (what a query interpolates and re-simulates)."""
+    feasible = table.status == STATUS_CODES["feasible"]
+    if not feasible.any():
+        return  # nothing will be read from it: the query solves from scratch
+    for key, shape in shapes.items():
+        if not table.has_field(key):
+            raise TableError(f"{table.path}: missing dataset points/{key}, which a query interpolates")
+        data = table.field(key)
+        if data.shape[1:] != shape:
+            raise TableError(f"{table.path}: points/{key} has per-point shape {data.shape[1:]}; this scenario's "
+                             f"plans have {shape}")
+        if data.dtype.kind != "f":
+            raise TableError(f"{table.path}: points/{key} must hold floats, got dtype {data.dtype}")
+        bad = np.flatnonzero(~np.isfinite(data[feasible].reshape(int(feasible.sum()), -1)).all(axis=1))
+        if bad.size:
+            raise TableError(f"{table.path}: points/{key} is not finite at feasible point "
+                             f"{int(np.flatnonzero(feasible)[bad[0]])}")
 
 
 def _circular_gap(a: float, b: float, period: float) -> float:
