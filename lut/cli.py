@@ -99,6 +99,7 @@ def validate(scenario_path: str) -> None:
     click.echo("ok")
 
 
+MAX_BUDGET_S = 86400.0  # a query's time budget beyond a day is a typo (s)
 COST_NAMES = ("manipulability", "min_distance", "approach_energy", "attitude_disturbance", "peak_wrench")
 
 
@@ -130,15 +131,35 @@ def _cost_weights(base, specs: tuple[str, ...]):  # noqa: ANN001, ANN202
         name, _, value = spec.partition("=")
         name = name.replace("-", "_")
         if name == "overscale":
-            overscale = float(value)
+            if not value:
+                raise ConfigError("--cost", name, "needs a value: overscale=FACTOR")
+            overscale = _cost_number(name, value)
+            if overscale <= 0:
+                raise ConfigError("--cost", name, f"must be > 0, got {value!r}")
             continue
         if name not in weights:
             raise ConfigError("--cost", name, f"unknown cost; choose from none, {', '.join(COST_NAMES)}, overscale")
-        try:
-            weights[name] = float(value) if value else 1.0
-        except ValueError:
-            raise ConfigError("--cost", name, f"weight must be a number, got {value!r}") from None
+        weights[name] = _cost_number(name, value) if value else 1.0
     return replace(base, **weights, overscale=overscale)
+
+
+def _cost_number(name: str, text: str) -> float:
+    """A finite, non-negative ``--cost`` value within the scenario file's sanity limit for ``costs.<name>``."""
+    import math
+
+    from planner.config_limits import violation
+    from planner.errors import ConfigError
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError("--cost", name, f"must be a number, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise ConfigError("--cost", name, f"must be a finite number >= 0, got {text!r}")
+    problem = violation(f"costs.{name}", value)
+    if problem:
+        raise ConfigError("--cost", name, problem)
+    return value
 
 
 def target_state_from_options(scenario, attitude: str | None, omega_deg_s: str | None,  # noqa: ANN001
@@ -376,8 +397,8 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     from planner.target import TargetState
     from planner.verify import summary_lines
 
-    if not budget_s > 0:
-        raise LutgenError(f"--budget-s: must be > 0, got {budget_s}")
+    if not 0 < budget_s <= MAX_BUDGET_S:
+        raise LutgenError(f"--budget-s: must be in (0, {MAX_BUDGET_S:g}] s, got {budget_s}")
     quat = _floats(attitude, 4, "--attitude")
     omega = np.radians(_floats(omega_deg_s, 3, "--omega-deg-s"))
     state = TargetState(np.asarray(quat), omega)

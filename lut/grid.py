@@ -34,7 +34,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import tomllib
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,9 +41,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planner.config_limits import MAX_GRID_POINTS
 from planner.errors import ConfigError, TargetStateError
 from planner.rotation import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rpy_to_matrix
-from planner.scenario import _read_toml, _Table
+from planner.scenario import _read_toml, _Table, parse_toml
 from planner.target import TargetState
 
 Array = NDArray[np.float64]
@@ -62,7 +62,6 @@ _ANGLE_AXES = frozenset({"spin_axis_angle_deg", "spin_phase_deg", "roll_deg", "y
 FLAT_SPIN_TOL_RAD = 1e-6
 # coordinates (deg or deg/s) this close to a grid bound or a fixed axis value count as on it
 COORD_TOL = 1e-6
-MAX_POINTS = 10_000_000  # more grid points than this is surely a typo in a count
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -118,10 +117,7 @@ def load_grid_text(text: str, source: str, scenario_path: str | Path | None = No
     ``scenario_path`` overrides the config's ``scenario`` field (which is still validated); without
     it, a relative ``scenario`` is taken relative to the folder of ``source``.
     """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(source, "", f"not valid TOML ({exc})") from None
+    data = parse_toml(text, source)
     override = None if scenario_path is None else Path(scenario_path)
     return _parse_grid(data, text, source, Path(source).parent, override)
 
@@ -156,8 +152,9 @@ def _parse_grid(data: dict, text: str, source: str, base_dir: Path, scenario_ove
         axes.append(_check_axis(a, Axis(axis_name, lo, hi, int(count))))
     t.finish()
     n_points = math.prod(ax.count for ax in axes)
-    if n_points > MAX_POINTS:
-        raise t.error("axes", f"the grid has {n_points} points, more than {MAX_POINTS}: check the counts")
+    if n_points > MAX_GRID_POINTS:
+        raise t.error("axes", f"the grid has {n_points} points, more than {MAX_GRID_POINTS} (sanity limit): "
+                      "check the counts")
     return GridConfig(source, text, name, scenario_path, kind, tuple(axes))
 
 

@@ -11,9 +11,13 @@ class ConfigError(LutgenError):
     The message names the file and the field, e.g. ``targets/x.toml: mass_kg: must be > 0, got -3``.
     """
 
+    MAX_PROBLEM_CHARS = 300  # a problem quoting a huge value is cut: the message stays one readable line
+
     def __init__(self, source: str, field: str, problem: str) -> None:
         self.source = source
         self.field = field
+        if len(problem) > self.MAX_PROBLEM_CHARS:
+            problem = problem[: self.MAX_PROBLEM_CHARS - 1] + "…"
         self.problem = problem
         where = f"{source}: {field}" if field else source
         super().__init__(f"{where}: {problem}")

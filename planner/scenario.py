@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.config_limits import MAX_CONFIG_BYTES, MAX_SHAPES, violation
 from planner.errors import ConfigError
 from planner.geometry import Box, Capsule, PlacedShape, make_transform
 from planner.robot import RobotModel, load_robot
@@ -62,27 +63,30 @@ class _Table:
             return value
         kinds = (int,) if integer else (int, float)
         if isinstance(value, bool) or not isinstance(value, kinds):
-            raise self.error(key, f"expected {'an integer' if integer else 'a number'}, got {value!r}")
+            raise self.error(key, f"expected {'an integer' if integer else 'a number'}, got {short_repr(value)}")
         if not math.isfinite(value):
             raise self.error(key, f"must be finite, got {value!r}")
         if positive and not value > 0:
             raise self.error(key, f"must be > 0, got {value!r}")
         if nonnegative and value < 0:
             raise self.error(key, f"must be >= 0, got {value!r}")
+        problem = violation(self.field(key), value)
+        if problem:
+            raise self.error(key, problem)
         return int(value) if integer else float(value)
 
     def string(self, key: str, default: Any = _MISSING, choices: tuple[str, ...] | None = None) -> str:
         value = self._get(key, default)
         if not isinstance(value, str):
-            raise self.error(key, f"expected a string, got {value!r}")
+            raise self.error(key, f"expected a string, got {short_repr(value)}")
         if choices is not None and value not in choices:
-            raise self.error(key, f"must be one of {', '.join(choices)}, got {value!r}")
+            raise self.error(key, f"must be one of {', '.join(choices)}, got {short_repr(value)}")
         return value
 
     def boolean(self, key: str, default: Any = _MISSING) -> bool:
         value = self._get(key, default)
         if not isinstance(value, bool):
-            raise self.error(key, f"expected true or false, got {value!r}")
+            raise self.error(key, f"expected true or false, got {short_repr(value)}")
         return value
 
     def vector(self, key: str, length: int, default: Any = _MISSING) -> Array:
@@ -91,10 +95,13 @@ class _Table:
             return None if default is None else np.asarray(default, dtype=float)
         if (not isinstance(value, list) or len(value) != length
                 or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)):
-            raise self.error(key, f"expected a list of {length} numbers, got {value!r}")
+            raise self.error(key, f"expected a list of {length} numbers, got {short_repr(value)}")
         arr = np.asarray(value, dtype=float)
         if not np.all(np.isfinite(arr)):
             raise self.error(key, f"must be finite, got {value!r}")
+        problem = violation(self.field(key), float(np.abs(arr).max()))
+        if problem:
+            raise self.error(key, f"every element {problem}")
         return arr
 
     def range_(self, key: str, default: Any = _MISSING) -> tuple[float, float]:
@@ -107,10 +114,12 @@ class _Table:
         value = self._get(key, {} if default is not _MISSING else _MISSING)
         return _Table(value, self.source, self.field(key))
 
-    def tables(self, key: str) -> list[_Table]:
+    def tables(self, key: str, maximum: int | None = None) -> list[_Table]:
         value = self._get(key, _MISSING)
         if not isinstance(value, list) or not value:
             raise self.error(key, "expected a non-empty array of tables ([[...]])")
+        if maximum is not None and len(value) > maximum:
+            raise self.error(key, f"{len(value)} entries, at most {maximum} (sanity limit)")
         return [_Table(v, self.source, f"{self.field(key)}[{i}]") for i, v in enumerate(value)]
 
     def finish(self) -> None:
@@ -119,18 +128,35 @@ class _Table:
             raise self.error(unknown[0], "unknown field")
 
 
+def short_repr(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters (a 2-million-element list stays one short line)."""
+    text = repr(value) if not isinstance(value, list) or len(value) <= limit else f"[{len(value)} items]"
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def parse_toml(text: str, source: str) -> dict[str, Any]:
+    """``text`` parsed as TOML; anything that is not a sane config is a :class:`ConfigError` naming ``source``."""
+    if len(text) > MAX_CONFIG_BYTES:
+        raise ConfigError(source, "", f"{len(text)} characters: too large for a config (at most {MAX_CONFIG_BYTES})")
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(source, "", f"not valid TOML ({exc})") from None
+    except RecursionError:  # tomllib recurses once per nesting level of an array or inline table
+        raise ConfigError(source, "", "not a config: arrays or tables nested too deeply") from None
+
+
 def _read_toml(path: Path) -> tuple[dict[str, Any], str]:
     src = str(path)
     if not path.is_file():
         raise ConfigError(src, "", "file not found")
+    if path.stat().st_size > MAX_CONFIG_BYTES:
+        raise ConfigError(src, "", f"{path.stat().st_size} bytes: too large for a config (at most {MAX_CONFIG_BYTES})")
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise ConfigError(src, "", "not valid TOML (not UTF-8 text)") from None
-    try:
-        return tomllib.loads(text), text
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(src, "", f"not valid TOML ({exc})") from None
+    return parse_toml(text, src), text
 
 
 def _inertia_matrix(t: _Table, key: str) -> Array:
@@ -138,14 +164,14 @@ def _inertia_matrix(t: _Table, key: str) -> Array:
     if isinstance(value, list) and len(value) == 3 and all(isinstance(v, list) for v in value):
         if not all(len(r) == 3 and all(isinstance(x, int | float) and not isinstance(x, bool) for x in r)
                    for r in value):
-            raise t.error(key, f"expected 3 principal moments or a 3×3 matrix of numbers, got {value!r}")
+            raise t.error(key, f"expected 3 principal moments or a 3×3 matrix of numbers, got {short_repr(value)}")
         rows = [np.asarray(r, dtype=float) for r in value]
         matrix = np.vstack(rows)
     elif isinstance(value, list) and len(value) == 3 and all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in value):
         matrix = np.diag(np.asarray(value, dtype=float))
     else:
-        raise t.error(key, f"expected 3 principal moments or a 3×3 matrix, got {value!r}")
+        raise t.error(key, f"expected 3 principal moments or a 3×3 matrix, got {short_repr(value)}")
     if not np.all(np.isfinite(matrix)) or not np.allclose(matrix, matrix.T, rtol=0, atol=1e-9 * np.abs(matrix).max()):
         raise t.error(key, "inertia must be a finite symmetric matrix")
     eig = np.linalg.eigvalsh(matrix)
@@ -212,7 +238,7 @@ def load_target(path: str | Path) -> TargetConfig:
     inertia = _inertia_matrix(t, "inertia_kg_m2")
     com = t.vector("com_position_m", 3)
     shapes, handles = [], set()
-    for s in t.tables("shapes"):
+    for s in t.tables("shapes", maximum=MAX_SHAPES):
         sname = s.string("name")
         kind = s.string("kind", choices=("box", "capsule"))
         position = s.vector("position_m", 3, default=[0.0, 0.0, 0.0])

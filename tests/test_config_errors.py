@@ -296,7 +296,28 @@ CASES = [
     Case("target-not-toml", write(TARGET_II, "mass_kg = = 3\n"), "scenario_II_target.toml", None, "TOML", SCEN_II),
     Case("target-missing", remove(TARGET_I), "scenario_I.toml", "target", "not found"),
     Case("scenario-missing", remove(SCEN_I), "scenario_I.toml", None, "not found"),
+    # sanity limits (planner.config_limits): values that would cost hours or gigabytes before an answer
+    Case("limit-stabilization-duration", set_key(SCEN_I, "phases", "stabilization_s", "1e9"),
+         "scenario_I.toml", "phases.stabilization_s", "sanity limit"),
+    Case("limit-via-points", set_key(SCEN_I, "approach", "via_points", "100000000"),
+         "scenario_I.toml", "approach.via_points", "sanity limit"),
+    Case("limit-cost-weight", set_key(SCEN_I, "costs", "min_distance", "1e12"),
+         "scenario_I.toml", "costs.min_distance", "sanity limit"),
+    Case("limit-tracking-step", set_key(SCEN_I, "tracking", "step_s", "1e-9"),
+         "scenario_I.toml", "tracking.step_s", "sanity limit"),
+    Case("limit-body-rate", set_key(SCEN_I, "target_state", "omega_body_deg_s", "[0.0, 0.0, 1e6]"),
+         "scenario_I.toml", "target_state.omega_body_deg_s", "sanity limit"),
+    Case("limit-box-size", set_key(TARGET_I, "shapes", "size_m", "[1e6, 1.0, 1.0]"),
+         "scenario_I_target.toml", "shapes[0].size_m", "sanity limit"),
+    Case("deeply-nested-array", append(SCEN_I, "deep = " + "[" * 5000 + "]" * 5000),
+         "scenario_I.toml", None, "nested too deeply"),
+    Case("huge-array", append(SCEN_I, "big = [" + ",".join(["0"] * 2_000_000) + "]"),
+         "scenario_I.toml", None, "too large for a config"),
+    Case("long-array-in-message",
+         set_key(SCEN_I, "target_state", "attitude_wxyz", "[" + ",".join(["1"] * 100_000) + "]"),
+         "scenario_I.toml", "target_state.attitude_wxyz", "[100000 items]"),
 ]
+MAX_LINE_CHARS = 600  # an error quoting a huge value stays one readable line
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
@@ -312,6 +333,7 @@ def test_bad_config_gives_one_line_error(case: Case, tmp_path: Path) -> None:
     assert len(lines) == 1, f"expected one stderr line, got {len(lines)}:\n{err}"
     line = lines[0]
     assert line.startswith("error: "), line
+    assert len(line) <= MAX_LINE_CHARS, len(line)
     assert case.file in line, f"file {case.file!r} not named: {line}"
     if case.field is not None:
         # after the file name, as a whole dotted-path component: "phase" must not match "phases.x"
