@@ -32,6 +32,7 @@ import numpy as np
 from lut.grid import Grid, GridConfig, load_grid, phase_time_shift_s
 from lut.journal import Journal, JournalStatus, journal_status
 from lut.output_paths import Output, check_outputs
+from lut.parent_watch import exit_with_parent
 from lut.point_worker import load_npz, save_npz
 from lut.records import Record, failed_record
 from lut.store import STATUS_CODES, Table, model_hash, write_table
@@ -92,11 +93,13 @@ def prepare(grid_path: str | Path) -> tuple[GridConfig, Scenario, Grid]:
 
 
 def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: Record | None,
-              warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None) -> Record:
+              warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None,
+              timeout_name: str = "--point-timeout") -> Record:
     """Solve one point in a child process; timeouts and crashes become failed records.
 
     ``max_wall_s`` (s), when given, lowers the per-NLP wall-time limit of the solve (see
-    :func:`lut.point_worker.solve_point`); ``timeout_s`` is the hard limit of the whole process.
+    :func:`lut.point_worker.solve_point`); ``timeout_s`` is the hard limit of the whole process, which a
+    timeout's reason names as ``timeout_name`` (the option that set it).
     """
     with tempfile.TemporaryDirectory(prefix="lutgen-point-") as tmp:
         in_path, out_path = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
@@ -109,10 +112,10 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
         save_npz(in_path, args)
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run([sys.executable, "-m", "lut.point_worker", solver, str(in_path), str(out_path)],
-                                  capture_output=True, text=True, timeout=timeout_s)
+            proc = subprocess.run([sys.executable, "-m", "lut.point_worker", solver, str(in_path), str(out_path),
+                                   str(os.getpid())], capture_output=True, text=True, timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            return failed_record(point, f"timeout: exceeded --point-timeout {timeout_s:g} s", time.perf_counter() - t0)
+            return failed_record(point, f"timeout: exceeded {timeout_name} {timeout_s:g} s", time.perf_counter() - t0)
         if proc.returncode != 0 or not out_path.exists():
             last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
             how = f"signal {-proc.returncode}" if proc.returncode < 0 else f"exit code {proc.returncode}"
@@ -137,7 +140,9 @@ def _parallel(options: BuildOptions):  # noqa: ANN202
     import joblib
 
     if options.backend == "loky":
-        return joblib.Parallel(n_jobs=options.jobs, backend="loky", return_as="generator_unordered"), None
+        # every worker ends itself when the build dies (loky's own idle timeout would keep it 300 s)
+        with joblib.parallel_config(backend="loky", initializer=exit_with_parent, initargs=(os.getpid(),)):
+            return joblib.Parallel(n_jobs=options.jobs, return_as="generator_unordered"), None
     if options.backend == "dask":
         try:
             from distributed import Client

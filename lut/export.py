@@ -8,12 +8,15 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from planner.costs import approach_energy
+from planner.errors import LutgenError
 from planner.geometry import Box
 from planner.plan import GraspPlan
 from planner.rotation import matrix_to_quat
@@ -97,6 +100,13 @@ def target_shapes(plan: GraspPlan) -> list[dict[str, Any]]:
     return out
 
 
+def portable_path(path: str | Path) -> str:
+    """``path`` relative to the current directory, normalised (``a/../b`` → ``b``): a plan names its robot
+    the way the command was given it, never by this machine's absolute path (:func:`lut.plan_file.resolve_robot_urdf`
+    reads it against the current directory, then the repository root)."""
+    return Path(os.path.normpath(os.path.relpath(Path(path).absolute()))).as_posix()
+
+
 def plan_document(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
     """The ``lutgen.plan/1`` JSON object."""
     sc = plan.scenario
@@ -106,10 +116,10 @@ def plan_document(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
         "schema": SCHEMA,
         "status": "feasible" if report.feasible else "infeasible",
         "scenario": sc.name,
-        "robot_urdf": sc.robot.urdf_path,
+        "robot_urdf": portable_path(sc.robot.urdf_path),
         "ee_frame": sc.robot.ee_frame,
         "target": {
-            "inertia_kg_m2": np.diag(sc.target.inertia_body_kg_m2).tolist(),
+            "inertia_kg_m2": np.asarray(sc.target.inertia_body_kg_m2, dtype=float).tolist(),  # 3×3, body frame
             "mass_kg": sc.target.mass_kg,
             "com_position_m": sc.target.p_world_com.tolist(),
             "attitude_wxyz": np.asarray(plan.target_state.attitude_wxyz).tolist(),
@@ -124,38 +134,60 @@ def plan_document(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
     }
 
 
-def write_json(path: str | Path, document: dict[str, Any]) -> None:
-    """Write the plan JSON (atomically: a reader never sees half a file)."""
+def _write_atomically(path: str | Path, write: Callable[[Path], None]) -> None:
+    """``write`` a temp file beside ``path``, then rename it over ``path``: a reader never sees half a file.
+    An OS error (folder gone, disk full) is a one-line :class:`LutgenError` and leaves no temp file."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(document, indent=1), encoding="utf-8")
-    tmp.replace(path)
+    try:
+        write(tmp)
+        tmp.replace(path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise LutgenError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+def write_json(path: str | Path, document: dict[str, Any]) -> None:
+    """Write the plan JSON atomically."""
+    _write_atomically(path, lambda tmp: tmp.write_text(json.dumps(document, indent=1), encoding="utf-8"))
 
 
 CSV_COLUMNS = (("t", 1), ("q", 7), ("qd", 7), ("base_position", 3), ("base_wxyz", 4), ("ee_position", 3),
                ("ee_wxyz", 4), ("grasp_position", 3), ("grasp_wxyz", 4), ("target_position", 3),
                ("target_wxyz", 4), ("grasp_wrench", 6), ("min_distance_m", 1))
+# unit of each column group (the grasp wrench: forces in N, moments in N·m)
+CSV_UNITS = {"t": "s", "q": "rad", "qd": "rad/s", "base_position": "m", "base_wxyz": "1", "ee_position": "m",
+             "ee_wxyz": "1", "grasp_position": "m", "grasp_wxyz": "1", "target_position": "m", "target_wxyz": "1",
+             "min_distance_m": "m"}
+
+
+def csv_header() -> list[str]:
+    """Column names with their unit in brackets, e.g. ``t [s]``, ``q_1 [rad]``, ``grasp_wrench_mx [N·m]``."""
+    header = []
+    for key, width in CSV_COLUMNS:
+        if width == 1:
+            header.append(f"{key} [{CSV_UNITS[key]}]")
+            continue
+        if key == "grasp_wrench":
+            header += [f"{key}_{s} [{'N' if s[0] == 'f' else 'N·m'}]" for s in ("fx", "fy", "fz", "mx", "my", "mz")]
+            continue
+        suffixes = ["w", "x", "y", "z"] if key.endswith("wxyz") else \
+            ["x", "y", "z"] if key.endswith("position") else [str(j + 1) for j in range(width)]
+        header += [f"{key}_{s} [{CSV_UNITS[key]}]" for s in suffixes]
+    return header
 
 
 def write_csv(path: str | Path, plan: GraspPlan, report: VerifyReport) -> None:
     """The samples flat: one row per time step, a header naming each column with its unit."""
     samples = plan_samples(plan, report)
-    header, columns = [], []
-    for key, width in CSV_COLUMNS:
-        data = np.asarray(samples[key]).reshape(len(samples["t"]), -1)
-        if width == 1:
-            header.append(key)
-        else:
-            suffixes = {"grasp_wrench": ["fx", "fy", "fz", "mx", "my", "mz"]}.get(
-                key, ["w", "x", "y", "z"] if key.endswith("wxyz") else
-                ["x", "y", "z"] if key.endswith("position") else [str(j + 1) for j in range(width)])
-            header += [f"{key}_{s}" for s in suffixes]
-        columns.append(data)
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="", encoding="utf-8") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(header)
-        for row in np.hstack(columns):
-            writer.writerow([f"{v:.10g}" for v in row])
-    tmp.replace(path)
+    n = len(samples["t"])
+    rows = np.hstack([np.asarray(samples[key]).reshape(n, -1) for key, _ in CSV_COLUMNS])
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="", encoding="utf-8") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(csv_header())
+            for row in rows:
+                writer.writerow([f"{v:.10g}" for v in row])
+
+    _write_atomically(path, write)

@@ -1,4 +1,4 @@
-"""Solve one grid point in its own process: ``python -m lut.point_worker SOLVER IN.npz OUT.npz``.
+"""Solve one grid point in its own process: ``python -m lut.point_worker SOLVER IN.npz OUT.npz [PARENT_PID]``.
 
 A build runs every point in a child process so that a point that exceeds its time limit can be
 killed, and a point that crashes (segfault, out of memory) takes down only itself: both are recorded
@@ -6,7 +6,8 @@ as failed with the reason and the build goes on. Inputs and outputs are ``.npz``
 ``allow_pickle=False``; the output is written atomically (temp + rename).
 
 ``SOLVER`` is ``module:function`` with the signature of :func:`solve_point` (tests substitute a fast
-stand-in; the product always uses this module's own).
+stand-in; the product always uses this module's own). ``PARENT_PID``, the process that started this
+one, makes it end when that process dies (:mod:`lut.parent_watch`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from lut.parent_watch import exit_with_parent
 from lut.records import Record, failed_record, record_from_plan, warm_start_from_record
 
 _PLANNERS: dict[str, Any] = {}
@@ -76,7 +78,9 @@ def load_npz(path: Path) -> dict[str, Any]:
 
 
 def main(argv: list[str]) -> int:
-    solver_spec, in_path, out_path = argv
+    solver_spec, in_path, out_path, *parent = argv
+    # a killed build (or query) must not leave this solve running to its time limit
+    exit_with_parent(int(parent[0]) if parent else None)
     module, _, name = solver_spec.partition(":")
     solver = getattr(importlib.import_module(module), name)
     args = load_npz(Path(in_path))

@@ -191,7 +191,8 @@ class TableQuery:
             warm = {key: rec[key] for key in PARAMETER_KEYS}
             warm["status"] = "feasible"
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
-                         max_wall_s=max(1.0, budget_s / 4))
+                         max_wall_s=max(1.0, budget_s / 4),
+                         timeout_name="the refine's share of --budget-s")
 
 
 def parameter_shapes(scenario: Scenario) -> dict[str, tuple[int, ...]]:

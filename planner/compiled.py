@@ -11,7 +11,8 @@ the Function's serialisation (its whole expression graph, 16 ms to form where ge
 the CasADi version and the compiler, so any change of robot, formula or CasADi version compiles anew, and a
 library that does not give the Function's numbers is never used (checked at every load). Compilation runs
 under a file lock, so a table build's workers wait for one compiler instead of racing, and the library
-appears by atomic rename, so no process ever loads half of one.
+appears by atomic rename, so no process ever loads half of one. A cached library that cannot be loaded or
+gives other numbers (truncated by a full disk, copied from another machine) is deleted and compiled once more.
 
 ``-O0``: the sources are large (megabytes of straight-line code), where gcc's optimiser is slow; measured
 on the wrench: -O0 compiles in 7 s and evaluates in 0.30 ms, -O1 takes 97 s for 0.17 ms, -O2 112 s for
@@ -70,27 +71,52 @@ def compiled(f: ca.Function, options: dict | None = None) -> ca.Function:
     if compiler is None:
         return _fall_back(f, "no C compiler found (set CC, or install gcc)")
     jacobian = f.jacobian()
-    try:
-        library = _library(f, jacobian, compiler)
-        loaded = ca.external(f.name(), str(library), dict(options or {}))
-    except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
-        return _fall_back(f, f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
-    if not _agrees(f, jacobian, loaded):
-        return _fall_back(f, f"the compiled {library.name} disagrees with the interpreted Function")
-    return loaded
+    problem = ""
+    for attempt in range(2):  # a cached library that cannot be loaded or disagrees is compiled once more
+        try:
+            library = _library(f, jacobian, compiler)
+            loaded = ca.external(f.name(), str(library), dict(options or {}))
+        except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
+            problem = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        else:
+            if _agrees(f, jacobian, loaded):
+                return loaded
+            problem = f"the compiled {library.name} disagrees with the interpreted Function"
+            del loaded  # unloads it: a library still loaded would be found again by the next dlopen of its path
+        if attempt == 1 or not _discard_cached(f, compiler):
+            break
+    return _fall_back(f, problem)
+
+
+def _cache_paths(f: ca.Function, compiler: str) -> tuple[Path, Path]:
+    """The cached library of ``f`` for ``compiler`` and its lock file (named by a hash of the expression graph)."""
+    key = hashlib.sha256("\0".join([f.serialize(), ca.__version__, compiler, *COMPILE_FLAGS]).encode())
+    stem = f"{f.name()}-{key.hexdigest()[:24]}"
+    folder = cache_dir()
+    return folder / f"{stem}.so", folder / f"{stem}.lock"
+
+
+def _discard_cached(f: ca.Function, compiler: str) -> bool:
+    """Delete the cached library of ``f`` (broken: truncated, foreign, or giving other numbers), under its
+    lock; True when there was one to delete, so compiling again may help."""
+    library, lock_path = _cache_paths(f, compiler)
+    if not library.is_file():
+        return False
+    with open(lock_path, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        library.unlink(missing_ok=True)
+    return True
 
 
 def _library(f: ca.Function, jacobian: ca.Function, compiler: str) -> Path:
     """The cached shared library of ``f`` and its Jacobian, compiled first if missing."""
     name = f.name()
-    key = hashlib.sha256("\0".join([f.serialize(), ca.__version__, compiler, *COMPILE_FLAGS]).encode())
-    key = key.hexdigest()[:24]
-    folder = cache_dir()
+    library, lock_path = _cache_paths(f, compiler)
+    folder = library.parent
     folder.mkdir(parents=True, exist_ok=True)
-    library = folder / f"{name}-{key}.so"
     if library.is_file():
         return library
-    with open(folder / f"{name}-{key}.lock", "w") as lock:
+    with open(lock_path, "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # another process may be compiling it: wait for it
         if library.is_file():
             return library
