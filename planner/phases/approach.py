@@ -33,10 +33,10 @@ from planner.phases import constraint_backoff
 from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, ApproachGuess, initial_guesses
 from planner.phases.feasibility_stop import FeasibilityStop
 from planner.phases.ipopt import ipopt_options, ipopt_solver
-from planner.phases.tracking_profile import TRACKING_NODES, backoff_m
+from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend
 from planner.robot import fk_function
 from planner.scenario import Scenario
-from planner.scene import TARGET_BODY, build_scene, scene_layout
+from planner.scene import TARGET_BODY, SceneLayout, build_collision_scene, build_scene, scene_layout
 from planner.target import TargetState
 from planner.target_symbolic import prediction_function
 
@@ -48,6 +48,8 @@ STOPPING_FRACTION = 0.15  # the stabilization guess stops the joints within this
 # the tracking law's joint rates at the grasp within this fraction of the limits (as on the last node step,
 # TRACKING_SPEED_MARGIN): the rate model leaves out two small null-space terms
 GRASP_RATE_FRACTION = 0.8
+# fractions of t_f² at which the gripper–handle clearance of the blend onto the moving grasp frame is constrained
+BLEND_CHECK_NODES = (0.15, 0.3, 0.45)
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,16 @@ def _free_axis_rotation(M, axis: Array):  # noqa: ANN001, ANN202
 def _vee_skew(M):  # noqa: ANN001, ANN202
     """vee((M − Mᵀ)/2): the sin-scaled rotation-error vector of a relative rotation M."""
     return 0.5 * ca.vertcat(M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1])
+
+
+def _ee_to_body(robot, body: str) -> Array:  # noqa: ANN001
+    """``T_ee_body`` (4×4): the pose of ``body``'s frame in the ee frame, when both are on the last link."""
+    out = fk_function(robot)(np.zeros(robot.n_joints))
+    i = list(robot.body_names).index(body)
+    T_b_body, T_b_ee = np.eye(4), np.eye(4)
+    T_b_body[:3, :3], T_b_body[:3, 3] = np.asarray(out[2 * i]), np.asarray(out[2 * i + 1]).ravel()
+    T_b_ee[:3, :3], T_b_ee[:3, 3] = np.asarray(out[-2]), np.asarray(out[-1]).ravel()
+    return np.linalg.inv(T_b_ee) @ T_b_body
 
 
 class ApproachProblem:
@@ -164,6 +176,7 @@ class ApproachProblem:
         for _ in range(k):
             att, om = predict_step(att, om, tf / k)
             target_R.append(quat_to_rotation_sym(att))
+        att_f, om_f = att, om  # the target at t_f¹, where the tracking starts
         target_R_tr, t_prev = [], 0.0
         for t_node in tr_times:
             att, om = predict_step(att, om, t_node - t_prev)
@@ -240,16 +253,19 @@ class ApproachProblem:
         n_d = len(self.scene.pairs)
         n_q_box = k + n_tr + 1
         tr_err_v = ca.vertcat(*tr_err)
-        g_parts = [pos_err, rot_err, tr_err_v, q_box, qd_box, qd_steps, qd_grasp, *dists]
+        blend_dists, blend_bounds = self._blend_clearances(predict_step, att_f, om_f, R_ee, p_ee, R_free)
+        g_parts = [pos_err, rot_err, tr_err_v, q_box, qd_box, qd_steps, qd_grasp, *dists, *blend_dists]
         bo = constraint_backoff
         q_lo, q_hi = rob.q_min + bo.JOINT_POSITION_RAD, rob.q_max - bo.JOINT_POSITION_RAD
         qd_lim = bo.JOINT_VELOCITY_FRACTION * rob.qd_max
         lbg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_lo, n_q_box),
                np.tile(-qd_lim, k), np.concatenate([-f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
-               -GRASP_RATE_FRACTION * rob.qd_max, self._clearance_bounds(k, tr_times) + bo.COLLISION_M]
+               -GRASP_RATE_FRACTION * rob.qd_max, self._clearance_bounds(k, tr_times) + bo.COLLISION_M,
+               blend_bounds + bo.COLLISION_M]
         ubg = [np.zeros(3), np.zeros(rot_err.numel()), np.zeros(tr_err_v.numel()), np.tile(q_hi, n_q_box),
                np.tile(qd_lim, k), np.concatenate([f * rob.qd_max for f in TRACKING_SPEED_MARGIN]),
-               GRASP_RATE_FRACTION * rob.qd_max, np.full(len(all_poses) * n_d, np.inf)]
+               GRASP_RATE_FRACTION * rob.qd_max, np.full(len(all_poses) * n_d, np.inf),
+               np.full(len(blend_bounds), np.inf)]
         self.n_before_dist = sum(part.numel() for part in g_parts[:7])
         start = sum(part.numel() for part in g_parts[:5])
         self._rate_slice = slice(start, start + qd_steps.numel())
@@ -290,6 +306,44 @@ class ApproachProblem:
         self._scan: tuple[tuple[bytes, bytes, int], list[ApproachGuess]] | None = None
         self.n_pairs = n_d
         self.n_dist = len(all_poses) * n_d
+
+    def _blend_clearances(self, predict_step: ca.Function, att, om, R_ee0, p_ee0,  # noqa: ANN001
+                          R_free) -> tuple[list, Array]:  # noqa: ANN001
+        """Gripper–handle distances at :data:`BLEND_CHECK_NODES` of the tracking, and their lower bounds (m).
+
+        While the tracking IK's desired pose blends from the pre-grasp pose (at rest) onto the moving grasp
+        frame, the gripper lags the target; a target moving against the approach axis closes the gap faster
+        than the back-off does. The gripper is placed at that desired pose (:mod:`planner.phases.tracking`;
+        the rotation blend to second order in its angle, a few degrees here).
+        """
+        sc = self.scenario
+        layout = scene_layout(sc.robot, sc.target)
+        if layout.gripper_handle is None:
+            return [], np.zeros(0)
+        scene = build_collision_scene(SceneLayout(layout.bodies, (layout.gripper_handle,), None, ()))
+        gripper = layout.gripper_handle[0]
+        self.blend_cb = SceneDistanceCallback("blend_distance", scene, [gripper, TARGET_BODY])
+        T_ee_gripper = _ee_to_body(self.robot, gripper)
+        T_bg, com = sc.target.grasp.T_body_grasp, ca.DM(sc.target.p_world_com)
+        b0, t2, margin = sc.approach.pregrasp_backoff_m, sc.phases.tracking_s, sc.limits.collision_margin_m
+        dists, bounds, t_prev = [], [], 0.0
+        for frac in BLEND_CHECK_NODES:
+            t = frac * t2
+            att, om = predict_step(att, om, t - t_prev)
+            t_prev = t
+            R_t = quat_to_rotation_sym(att)
+            R_G = ca.mtimes(ca.mtimes(R_t, ca.DM(T_bg[:3, :3])), R_free)
+            p_G = com + ca.mtimes(R_t, ca.DM(T_bg[:3, 3]))
+            s = blend(t, t2)
+            p_des = (1 - s) * p_ee0 + s * (p_G - backoff_m(b0, t, t2) * R_G[:, 2])
+            phi = ca.skew(s * _vee_skew(ca.mtimes(R_ee0.T, R_G)))
+            R_des = ca.mtimes(R_ee0, ca.DM.eye(3) + phi + 0.5 * ca.mtimes(phi, phi))
+            R_grip = ca.mtimes(R_des, ca.DM(T_ee_gripper[:3, :3]))
+            p_grip = p_des + ca.mtimes(R_des, ca.DM(T_ee_gripper[:3, 3]))
+            dists.append(self.blend_cb(ca.vertcat(pose_vector(R_grip, p_grip), pose_vector(R_t, com))))
+            bounds.append(required_clearance_m([layout.gripper_handle], layout.gripper_handle, margin, TRACKING,
+                                               closed_backoff_m(b0, t, t2)))
+        return dists, np.concatenate(bounds)
 
     def _clearance_bounds(self, k: int, tr_times: list[float]) -> Array:
         """Lower bounds (m) of the distances at the k via points, then at the tracking nodes (contact rule)."""
