@@ -209,7 +209,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
 
     from lut.export import plan_document, write_csv, write_json
     from planner.errors import LutgenError
-    from planner.plan import Planner
+    from planner.plan import OutOfReach, Planner
     from planner.scenario import load_scenario
     from planner.verify import summary_lines, verify
 
@@ -222,7 +222,13 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     click.echo(f"planning {sc.name}: building the problems…", err=True)
     planner = Planner(sc)
     click.echo(f"  built in {planner.build_time_s:.1f} s; solving…", err=True)
-    result = planner.plan(state)
+    try:
+        result = planner.plan(state)
+    except OutOfReach as exc:  # proved infeasible before solving: no trajectory to verify or export
+        click.echo(f"INFEASIBLE ({exc.elapsed_s:.1f} s): {exc}", err=True)
+        if out_path or csv_path:
+            click.echo("no plan written: there is no trajectory to export", err=True)
+        sys.exit(ExitCode.INFEASIBLE)
     report = verify(result, step_s=verify_step_s)
     for line in _plan_table(result, report):
         click.echo(line)

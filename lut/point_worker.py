@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from lut.parent_watch import exit_with_parent
-from lut.records import Record, failed_record, record_from_plan, warm_start_from_record
+from lut.records import Record, failed_record, out_of_reach_record, record_from_plan, warm_start_from_record
 
 _PLANNERS: dict[str, Any] = {}
 
@@ -35,7 +35,7 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: np.ndarray, omega
     """
     from dataclasses import replace
 
-    from planner.plan import Planner
+    from planner.plan import OutOfReach, Planner
     from planner.scenario import load_scenario
     from planner.target import TargetState
     from planner.verify import verify
@@ -54,7 +54,10 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: np.ndarray, omega
         period = 2 * np.pi / rate if rate > 0 else None
         warm_start = warm_start_from_record(warm, warm_shift_s, planner.scenario.phases.max_start_delay_s, period)
     t0 = time.perf_counter()
-    plan = planner.plan(state, warm_start)
+    try:
+        plan = planner.plan(state, warm_start)
+    except OutOfReach as exc:
+        return out_of_reach_record(point, str(exc), time.perf_counter() - t0)
     report = verify(plan)
     rec = record_from_plan(point, plan, report)
     rec["solve_time_s"] = time.perf_counter() - t0

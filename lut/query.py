@@ -22,7 +22,7 @@ import numpy as np
 
 from lut.build import DEFAULT_SOLVER, run_point, table_hash
 from lut.grid import Grid, load_grid_text
-from lut.records import PARAMETER_KEYS, Record, warm_start_from_record
+from lut.records import PARAMETER_KEYS, Record, has_parameters, warm_start_from_record
 from lut.store import STATUS_CODES, Table, TableError
 from planner.bspline import UniformCubicBSpline
 from planner.errors import LutgenError
@@ -154,7 +154,7 @@ class TableQuery:
             t0 = time.perf_counter()
             refined = self._refine(state, rec, remaining)
             latency["refine_s"] = time.perf_counter() - t0
-            if refined.get("status") in ("feasible", "infeasible"):
+            if refined.get("status") in ("feasible", "infeasible") and has_parameters(refined):
                 new_plan, new_report = self._simulate_and_verify(state, refined, {})
                 if report is None or (new_report.feasible and (refine or not report.feasible)):
                     plan, report, source = new_plan, new_report, "refined"

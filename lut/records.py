@@ -49,6 +49,16 @@ def failed_record(point: int, reason: str, solve_time_s: float = float("nan")) -
             "iterations": 0}
 
 
+def out_of_reach_record(point: int, reason: str, solve_time_s: float) -> Record:
+    """A point the planner proved infeasible before solving (:class:`planner.plan.OutOfReach`): no parameters."""
+    return {**failed_record(point, reason, solve_time_s), "status": "infeasible"}
+
+
+def has_parameters(rec: Record) -> bool:
+    """True when ``rec`` holds every parameter a plan can be re-simulated from."""
+    return all(key in rec for key in PARAMETER_KEYS)
+
+
 def warm_start_from_record(rec: Record, start_delay_shift_s: float = 0.0, max_delay_s: float | None = None,
                            period_s: float | None = None) -> WarmStart:
     """A :class:`WarmStart` from a (feasible) record.

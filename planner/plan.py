@@ -22,7 +22,7 @@ from planner.bspline import UniformCubicBSpline, approach_vertices, stabilizatio
 from planner.compound import compound_robot
 from planner.freefloating import FreeFloatingModel
 from planner.phases.approach import ApproachProblem, ApproachSolution
-from planner.phases.approach_guess import target_motion
+from planner.phases.approach_guess import ReachScan, forget_last_scan, reach_scan, target_motion
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
@@ -64,6 +64,16 @@ APPROACH_RETRY_MIN = 60
 def approach_retry_budget(first_iterations: int) -> int:
     """IPOPT iterations for the approach solve of a retry, from the first approach's iteration count."""
     return max(APPROACH_RETRY_MIN, APPROACH_RETRY_FACTOR * first_iterations)
+
+
+class OutOfReach(Exception):  # noqa: N818 - an outcome, not an error
+    """A cold plan found no meeting time in the start-delay window where the arm reaches the grasp: the state
+    is infeasible, and there is no trajectory to verify. ``str()`` says why; ``elapsed_s`` is how long it took."""
+
+    def __init__(self, scan: ReachScan, elapsed_s: float) -> None:
+        self.scan = scan
+        self.elapsed_s = elapsed_s
+        super().__init__(scan.reason())
 
 
 @dataclass(frozen=True)
@@ -126,7 +136,8 @@ class Planner:
     def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
 
-        A cold plan whose stabilization fails from the first grasp tries the grasps the approach reaches from
+        A cold plan raises :class:`OutOfReach` at once when its scan of meeting times reaches none. A cold plan
+        whose stabilization fails from the first grasp tries the grasps the approach reaches from
         its next scanned guesses (other meeting times), giving each stabilization
         :data:`STABILIZATION_BUDGET` iterations; when none succeeds, the first grasp's stabilization is solved
         again without that budget, so the plan is never worse than from the first grasp alone. A warm plan keeps its
@@ -136,7 +147,10 @@ class Planner:
         # the approach keeps its scan for this plan's retries only: planning a state again costs what a new
         # state costs (and a benchmark repeating one state measures that)
         self.approach.forget_scan()
+        forget_last_scan()
         warm = warm_start.as_warm_start() if isinstance(warm_start, GraspPlan) else warm_start
+        if warm is None:
+            self._raise_if_out_of_reach(state, t_start)
         notes: list[str] = []
         motion = self._motion(state)
         app = self.approach.solve(state, warm.approach if warm is not None else None)
@@ -184,6 +198,13 @@ class Planner:
                               timings, notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
+
+    def _raise_if_out_of_reach(self, state: TargetState, t_start: float) -> None:
+        """:class:`OutOfReach` when the scan of meeting times reaches none (the approach then starts from this
+        same, kept scan; without a reachable time its NLP would only search from θ_in for minutes)."""
+        scan = reach_scan(self.scenario, self.approach.spline, state, GRASP_GUESSES)
+        if not scan.reachable:
+            raise OutOfReach(scan, time.perf_counter() - t_start)
 
     def _grasp_candidate(self, state: TargetState, app: ApproachSolution, motion: TargetMotion,
                          notes: list[str]) -> GraspCandidate:

@@ -13,26 +13,32 @@ import pytest
 
 from lut.export import csv_header, plan_document, write_json
 from planner.errors import LutgenError
-from tests.support.cli import ROOT, lutgen
+from tests.support.cli import ROOT, lutgen, write_golden_for_current_model
 
-GOLDEN = ROOT / "tests" / "data" / "ci_golden.h5"
 STATE = ("--attitude", "1,0,0,0", "--omega-deg-s", "0,0,3.75")  # between the golden table's points
 
 
 @pytest.fixture(scope="module")
-def golden_plan():
-    """A plan and its report from the golden table (interpolated, re-simulated, verified; no solve)."""
+def table(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("export") / "golden.h5"
+    write_golden_for_current_model(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def golden_plan(table):
+    """A plan and its report from the golden table's plans (interpolated, re-simulated, verified; no solve)."""
     from lut.query import TableQuery
     from planner.target import TargetState
 
-    tq = TableQuery(GOLDEN)
+    tq = TableQuery(table)
     result = tq.query(TargetState(np.array([1.0, 0, 0, 0]), np.radians([0, 0, 3.75])), budget_s=1.0)
     return result.plan, result.report
 
 
-def test_query_exports_a_portable_robot_path_and_csv_units(tmp_path):
+def test_query_exports_a_portable_robot_path_and_csv_units(table, tmp_path):
     plan_json, plan_csv = tmp_path / "q.json", tmp_path / "q.csv"
-    proc = lutgen("query", GOLDEN.relative_to(ROOT), *STATE, "--budget-s", "1", "--out", plan_json, "--csv", plan_csv,
+    proc = lutgen("query", table, *STATE, "--budget-s", "1", "--out", plan_json, "--csv", plan_csv,
                   cwd=ROOT)
     assert proc.returncode in (0, 2), proc.stderr
     doc = json.loads(plan_json.read_text())

@@ -11,6 +11,7 @@ largest clearance, and fit Eq. 23's parameters to a smooth joint motion from θ_
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 
 import casadi as ca
 import numpy as np
@@ -206,73 +207,173 @@ class _PoseIK:
         return None
 
 
+class MeetingOutcome(Enum):
+    """What the scan found at one candidate meeting time."""
+
+    REACHED = "reached"  # pre-grasp and tracking poses solved: a candidate NLP start
+    BEYOND_REACH = "beyond reach"  # the pre-grasp is farther than the arm reaches from every admissible base offset
+    IK_UNSOLVED = "IK unsolved"  # within that bound, but the bounded IK found no pre-grasp or tracking pose
+
+
+@dataclass(frozen=True)
+class ReachScan:
+    """The scan of meeting times over the start-delay window: its NLP starts and what it found at each time."""
+
+    guesses: list[ApproachGuess]
+    window_s: float  # the start-delay window [0, window_s] (s)
+    outcomes: tuple[MeetingOutcome, ...]  # one per scanned meeting time, DELAY_STEP_S apart
+
+    @property
+    def reachable(self) -> bool:
+        """True when at least one meeting time gave an NLP start."""
+        return MeetingOutcome.REACHED in self.outcomes
+
+    def reason(self) -> str:
+        """Why nothing was reachable, in one sentence (for an infeasible answer)."""
+        beyond = self.outcomes.count(MeetingOutcome.BEYOND_REACH)
+        unsolved = self.outcomes.count(MeetingOutcome.IK_UNSOLVED)
+        return (f"out of reach: no meeting time within the start-delay window [0, {self.window_s:g}] s is reachable "
+                f"(of {len(self.outcomes)} scanned every {DELAY_STEP_S:g} s, the pre-grasp is beyond the arm's reach "
+                f"at {beyond}; at {unsolved} the arm cannot take the pre-grasp and tracking poses)")
+
+
+@dataclass(frozen=True)
+class _Scan:
+    """What every meeting time of one scan shares."""
+
+    sc: Scenario
+    motion: TargetMotion
+    fk: ca.Function
+    scene: object
+    ik: _PoseIK
+    S_pre: Array
+    x_home: Array
+    extra_starts: list[Array]
+
+
+# the last scans, so that the planner's reach check and the approach's starts share one scan (two: a cold
+# plan with the approach-energy cost scans with the base pinned as well)
+_KEPT_SCANS = 2
+_kept_scans: list[tuple[Scenario, UniformCubicBSpline, tuple, ReachScan]] = []
+
+
+def forget_last_scan() -> None:
+    """Drop the kept scans, so the next :func:`reach_scan` of any state scans anew."""
+    _kept_scans.clear()
+
+
 def initial_guesses(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState,
                     count: int = 3) -> list[ApproachGuess]:
     """Scan meeting times, solve the pre-grasp and tracking-node IK at each; return the ``count`` best
     NLP starts (meeting times at least :data:`MIN_SEPARATION_S` apart), best first."""
+    return reach_scan(scenario, spline, state, count).guesses
+
+
+def reach_scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int = 3) -> ReachScan:
+    """:func:`initial_guesses` with what the scan found at each meeting time; the last scan is kept (same
+    scenario and spline objects, state and count: the same answer, deterministic)."""
+    # kept with the objects themselves: an id alone could be reused by a later scenario
+    key = (state.attitude_wxyz.tobytes(), state.omega_body_rad_s.tobytes(), count)
+    for kept_scenario, kept_spline, kept_key, kept in _kept_scans:
+        if kept_scenario is scenario and kept_spline is spline and kept_key == key:
+            return kept
+    result = _scan(scenario, spline, state, count)
+    _kept_scans.append((scenario, spline, key, result))
+    del _kept_scans[:-_KEPT_SCANS]
+    return result
+
+
+def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int) -> ReachScan:
     sc = scenario
     robot = sc.robot
     tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
     motion = target_motion(sc, state, sc.phases.max_start_delay_s + tf + t2 + 1.0)
-    fk = fk_function(robot)
-    scene = build_scene(sc)
-    ik = _PoseIK(sc)
     free = sc.target.grasp.free_axis
-    S_pre = np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)])
-    x_home = np.concatenate([sc.q_initial, sc.base_offset_guess_m])
     # a few fixed, seeded extra starts: the IK has local minima (folded vs stretched arm)
     rng = np.random.default_rng(IK_SEED)
     extra_starts = [np.concatenate([rng.uniform(0.6 * robot.q_min, 0.6 * robot.q_max), sc.base_offset_guess_m])
                     for _ in range(IK_EXTRA_STARTS)]
-    x_prev = x_home
+    ctx = _Scan(sc, motion, fk_function(robot), build_scene(sc), _PoseIK(sc),
+                np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)]),
+                np.concatenate([sc.q_initial, sc.base_offset_guess_m]), extra_starts)
+    x_prev = ctx.x_home
     candidates: list[tuple] = []
+    outcomes: list[MeetingOutcome] = []
     for tau in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S):
-        R_g, p_g = (a[0] for a in motion.grasp_pose(tau + tf))
-        x_pre = ik.solve(p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2], R_g, S_pre,
-                         [x_prev, x_home, *extra_starts])
-        if x_pre is None:
-            continue
-        x_prev = x_pre
-        b = x_pre[7:]
-        out = fk(x_pre[:7])
-        R_free = np.eye(3)
-        if free is not None:
-            R_free = axis_angle_to_matrix(free, free_axis_angle(R_g, np.asarray(out[-2]), free))
-        configs, x_node = [x_pre], x_pre
-        for frac in TRACKING_NODES:
-            t_node = frac * t2
-            R_n, p_n = (a[0] for a in motion.grasp_pose(tau + tf + t_node))
-            R_G = R_n @ R_free
-            x_node = ik.solve(p_n - backoff_m(sc.approach.pregrasp_backoff_m, t_node, t2) * R_G[:, 2], R_G,
-                              np.eye(3), [x_node, *(np.concatenate([s[:7], b]) for s in (x_home, *extra_starts))],
-                              base_fixed=b)
-            if x_node is None:
-                break
-            configs.append(x_node)
-        if x_node is None:
-            continue
-        node_times = [0.0, *(f * t2 for f in TRACKING_NODES)]
-        speeds = [np.abs(configs[j + 1][:7] - configs[j][:7]).max() / (node_times[j + 1] - node_times[j])
-                  / robot.qd_max.max() for j in range(len(TRACKING_NODES))]
-        clearance = np.inf
-        manip = np.inf
-        for j, x in enumerate(configs):
-            R_t, _ = motion.body_pose(tau + tf + node_times[j])
-            T_target = np.eye(4)
-            T_target[:3, :3] = R_t[0]
-            T_target[:3, 3] = sc.target.p_world_com
-            poses = world_poses(robot, fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]), T_target)
-            clearance = min(clearance, min(d.distance_m for d in scene.distances(poses)))
-            manip = min(manip, manipulability(np.asarray(ik_jacobian(sc, x[:7]))))
-        # the quintic approach path peaks at 15/8 of its mean rate: travel / t_f¹ · 15/8 ≤ the limit
-        travel = float((np.abs(x_pre[:7] - sc.q_initial) / robot.qd_max).max()) * 15 / 8 / tf
-        speed_excess = sum(max(s / m - 1.0, 0.0) for s, m in zip(speeds, TRACKING_SPEED_MARGIN, strict=True))
-        # clearance first (capped: beyond 0.3 m it buys nothing), conditioning, then the rate limits
-        score = min(clearance, 0.3) + 2.0 * min(manip, 0.1) - speed_excess - max(travel - 0.9, 0.0)
-        candidates.append((score, clearance, [c.copy() for c in configs], float(tau)))
+        outcome, configs = _poses_at(ctx, float(tau), x_prev)
+        outcomes.append(outcome)
+        if configs:
+            x_prev = configs[0]  # the next time's pre-grasp starts here, even if this time's tracking failed
+        if outcome is MeetingOutcome.REACHED:
+            candidates.append(_scored(ctx, float(tau), configs))
     if not candidates:
         # nothing reachable: hand the NLP the initial configuration and let it report infeasibility
-        candidates.append((-np.inf, -np.inf, [x_home] * (1 + len(TRACKING_NODES)), 0.0))
+        candidates.append((-np.inf, -np.inf, [ctx.x_home] * (1 + len(TRACKING_NODES)), 0.0))
+    return ReachScan(_best_guesses(ctx, spline, candidates, count), sc.phases.max_start_delay_s, tuple(outcomes))
+
+
+def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, list[Array]]:
+    """The pre-grasp and tracking-node configurations ``[q, b_x, b_z]`` for meeting at ``tau`` + t_f¹, as far
+    as they were solved (all of them when the outcome is :attr:`MeetingOutcome.REACHED`)."""
+    sc, ik = ctx.sc, ctx.ik
+    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
+    free = sc.target.grasp.free_axis
+    R_g, p_g = (a[0] for a in ctx.motion.grasp_pose(tau + tf))
+    p_pre = p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2]
+    if ik.out_of_reach(p_pre, None, (np.zeros(3), np.eye(3))):
+        return MeetingOutcome.BEYOND_REACH, []
+    x_pre = ik.solve(p_pre, R_g, ctx.S_pre, [x_prev, ctx.x_home, *ctx.extra_starts])
+    if x_pre is None:
+        return MeetingOutcome.IK_UNSOLVED, []
+    b = x_pre[7:]
+    R_free = np.eye(3)
+    if free is not None:
+        R_free = axis_angle_to_matrix(free, free_axis_angle(R_g, np.asarray(ctx.fk(x_pre[:7])[-2]), free))
+    configs, x_node = [x_pre], x_pre
+    for frac in TRACKING_NODES:
+        t_node = frac * t2
+        R_n, p_n = (a[0] for a in ctx.motion.grasp_pose(tau + tf + t_node))
+        R_G = R_n @ R_free
+        x_node = ik.solve(p_n - backoff_m(sc.approach.pregrasp_backoff_m, t_node, t2) * R_G[:, 2], R_G,
+                          np.eye(3), [x_node, *(np.concatenate([s[:7], b]) for s in (ctx.x_home, *ctx.extra_starts))],
+                          base_fixed=b)
+        if x_node is None:
+            return MeetingOutcome.IK_UNSOLVED, configs
+        configs.append(x_node)
+    return MeetingOutcome.REACHED, configs
+
+
+def _scored(ctx: _Scan, tau: float, configs: list[Array]) -> tuple:
+    """``(score, clearance, configs, tau)`` of one reached meeting time (higher score: a better NLP start)."""
+    sc, robot = ctx.sc, ctx.sc.robot
+    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
+    x_pre = configs[0]
+    node_times = [0.0, *(f * t2 for f in TRACKING_NODES)]
+    speeds = [np.abs(configs[j + 1][:7] - configs[j][:7]).max() / (node_times[j + 1] - node_times[j])
+              / robot.qd_max.max() for j in range(len(TRACKING_NODES))]
+    clearance = np.inf
+    manip = np.inf
+    for j, x in enumerate(configs):
+        R_t, _ = ctx.motion.body_pose(tau + tf + node_times[j])
+        T_target = np.eye(4)
+        T_target[:3, :3] = R_t[0]
+        T_target[:3, 3] = sc.target.p_world_com
+        poses = world_poses(robot, ctx.fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]), T_target)
+        clearance = min(clearance, min(d.distance_m for d in ctx.scene.distances(poses)))
+        manip = min(manip, manipulability(np.asarray(ik_jacobian(sc, x[:7]))))
+    # the quintic approach path peaks at 15/8 of its mean rate: travel / t_f¹ · 15/8 ≤ the limit
+    travel = float((np.abs(x_pre[:7] - sc.q_initial) / robot.qd_max).max()) * 15 / 8 / tf
+    speed_excess = sum(max(s / m - 1.0, 0.0) for s, m in zip(speeds, TRACKING_SPEED_MARGIN, strict=True))
+    # clearance first (capped: beyond 0.3 m it buys nothing), conditioning, then the rate limits
+    score = min(clearance, 0.3) + 2.0 * min(manip, 0.1) - speed_excess - max(travel - 0.9, 0.0)
+    return score, clearance, [c.copy() for c in configs], tau
+
+
+def _best_guesses(ctx: _Scan, spline: UniformCubicBSpline, candidates: list[tuple],
+                  count: int) -> list[ApproachGuess]:
+    """The ``count`` best candidates at least :data:`MIN_SEPARATION_S` apart, as NLP starts, best first."""
+    sc, ik, motion, S_pre = ctx.sc, ctx.ik, ctx.motion, ctx.S_pre
+    tf = sc.phases.approach_s
     candidates.sort(key=lambda c: -c[0])
     chosen: list[tuple] = []
     for cand in candidates:

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
+
+import h5py
 
 from lut.build import prepare, table_hash
 from lut.store import write_table
@@ -47,3 +50,15 @@ def write_fake_table(path: Path, *, model_hash: str | None = None) -> None:
                 config_text=config.text, scenario_text=scenario.text,
                 model_hash=model_hash or table_hash(scenario), records=records, n_points=grid.n_points,
                 scenario_path=os.path.relpath(config.scenario_path, path.parent))
+
+
+def write_golden_for_current_model(path: Path) -> None:
+    """The golden CI table's real plans, labelled with today's configs (texts and model hash), so that a query
+    re-simulates and verifies them even after a deliberate config change made the golden table stale."""
+    config, scenario, _ = prepare(CI_GRID)
+    shutil.copy(ROOT / "tests" / "data" / "ci_golden.h5", path)
+    with h5py.File(path, "r+") as f:
+        f.attrs["model_hash"] = table_hash(scenario)
+        f.attrs["config_text"] = config.text
+        f.attrs["scenario_text"] = scenario.text
+        f.attrs["scenario_path"] = os.path.relpath(config.scenario_path, path.parent)
