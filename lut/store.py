@@ -54,7 +54,7 @@ BASE_FIELDS = ("status", "failure_reason", "solve_time_s", "iterations")
 TEXT_FIELDS = frozenset({"failure_reason"})  # every other per-point dataset holds numbers
 NUMERIC_KINDS = "biuf"
 # reading a table: a few seconds, plus time for its size; beyond that libhdf5 is taken to hang (s, bytes/s)
-READ_TIMEOUT_BASE_S = 5.0
+READ_TIMEOUT_BASE_S = 3.0
 READ_RATE_BYTES_PER_S = 20e6
 # a dataset's values cannot need more memory than this many times the file, plus slack (variable-length
 # strings are stored once; uncompressed arrays never exceed the file): a larger claim is a corrupt header

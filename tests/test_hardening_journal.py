@@ -13,7 +13,7 @@ import pytest
 
 from lut.build import BuildOptions, journal_path, run_build
 from lut.journal import Journal, JournalStatus, journal_status
-from tests.support.cli import CI_GRID, ROOT, assert_one_line_error, lutgen, write_fake_table
+from tests.support.cli import CI_GRID, ROOT, assert_one_line_error, lutgen_in_process, write_fake_table
 
 HEADER = {"model_hash": "abc", "grid_text": "x"}
 RACE_TRIALS = 25
@@ -72,7 +72,7 @@ def test_journal_torn_while_created_is_started_again(tmp_path):
 ])
 def test_option_errors_leave_no_journal_behind(tmp_path, args, words):
     out = tmp_path / "t.h5"
-    proc = lutgen("build", CI_GRID, "--out", out, "--no-progress", *args, timeout_s=60)
+    proc = lutgen_in_process("build", CI_GRID, "--out", out, "--no-progress", *args)
     assert_one_line_error(proc, *words)
     assert sorted(os.listdir(tmp_path)) == []
 
@@ -94,12 +94,12 @@ def test_a_running_build_and_an_interrupted_one_are_told_apart(tmp_path):
     jpath = journal_path(out)
     with Journal(jpath, HEADER):  # a build holding its journal
         assert journal_status(jpath) is JournalStatus.IN_USE
-        line = assert_one_line_error(lutgen("build", CI_GRID, "--out", out, "--no-progress", timeout_s=60))
+        line = assert_one_line_error(lutgen_in_process("build", CI_GRID, "--out", out, "--no-progress"))
         assert "running" in line and "interrupted" not in line
-        line = assert_one_line_error(lutgen("build", CI_GRID, "--out", out, "--force", timeout_s=60))
+        line = assert_one_line_error(lutgen_in_process("build", CI_GRID, "--out", out, "--force"))
         assert "running" in line  # --force never takes a running build's journal
     assert journal_status(jpath) is JournalStatus.INTERRUPTED
-    line = assert_one_line_error(lutgen("build", CI_GRID, "--out", out, "--no-progress", timeout_s=60))
+    line = assert_one_line_error(lutgen_in_process("build", CI_GRID, "--out", out, "--no-progress"))
     assert "interrupted" in line and "--resume" in line and "--force" in line
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.support.cli import ON_GRID_STATE, ROOT, assert_one_line_error, lutgen, write_fake_table
+from tests.support.cli import ON_GRID_STATE, ROOT, assert_one_line_error, lutgen_in_process, write_fake_table
 
 SCENARIO_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
 
@@ -41,19 +41,19 @@ def _grid(tmp_path: Path, counts: dict[str, int]) -> Path:
     ("approach_energy=1e12", ("approach_energy", "sanity limit")),
 ])
 def test_bad_cost_options_are_refused(spec, words):
-    assert_one_line_error(lutgen("plan", SCENARIO_II, "--cost", spec, timeout_s=60), "--cost", *words)
+    assert_one_line_error(lutgen_in_process("plan", SCENARIO_II, "--cost", spec), "--cost", *words)
 
 
 def test_ten_million_point_grid_is_refused_at_once(tmp_path):
     grid = _grid(tmp_path, {"omega_x_deg_s": 100, "omega_y_deg_s": 100, "omega_z_deg_s": 100, "yaw_deg": 10})
-    line = assert_one_line_error(lutgen("build", grid, "--out", tmp_path / "t.h5", timeout_s=60), "axes")
+    line = assert_one_line_error(lutgen_in_process("build", grid, "--out", tmp_path / "t.h5"), "axes")
     assert "10000000 points" in line and "sanity limit" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["grid.toml"]
 
 
 def test_huge_axis_count_is_refused(tmp_path):
     grid = _grid(tmp_path, {"omega_z_deg_s": 10**8})
-    assert_one_line_error(lutgen("build", grid, "--out", tmp_path / "t.h5", timeout_s=60), "axes[0].count",
+    assert_one_line_error(lutgen_in_process("build", grid, "--out", tmp_path / "t.h5"), "axes[0].count",
                           "sanity limit")
 
 
@@ -61,4 +61,4 @@ def test_huge_axis_count_is_refused(tmp_path):
 def test_unusable_query_budget_is_refused(tmp_path, budget):
     table = tmp_path / "t.h5"
     write_fake_table(table)
-    assert_one_line_error(lutgen("query", table, *ON_GRID_STATE, "--budget-s", budget, timeout_s=60), "--budget-s")
+    assert_one_line_error(lutgen_in_process("query", table, *ON_GRID_STATE, "--budget-s", budget), "--budget-s")

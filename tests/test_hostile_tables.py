@@ -22,7 +22,7 @@ import pytest
 from lut.query import parameter_shapes
 from lut.store import Table
 from planner.scenario import load_scenario
-from tests.support.cli import ON_GRID_STATE, ROOT, assert_one_line_error, lutgen, write_fake_table
+from tests.support.cli import ON_GRID_STATE, ROOT, assert_one_line_error, lutgen, lutgen_in_process, write_fake_table
 
 GOLDEN = ROOT / "tests" / "data" / "ci_golden.h5"
 LIMIT_S = 10.0  # the most a corrupt table may cost a command (the issue's bound)
@@ -76,11 +76,12 @@ def _nan_at_feasible_point(f: h5py.File) -> None:
     f["points/approach_params"][...] = data
 
 
+HANG = Damage("zeroed-4000-12000", _zero(4000, 12000), ("corrupt",))  # libhdf5 spun forever (issue 24)
 BYTE_DAMAGE = [
     Damage("truncated-half", _bytes(lambda d: d[: len(d) // 2]), ("corrupt",)),
     Damage("truncated-to-superblock", _bytes(lambda d: d[:96])),
     Damage("empty-file", _bytes(lambda d: b"")),
-    Damage("zeroed-4000-12000", _zero(4000, 12000), ("corrupt",)),  # the hang of issue 24
+    HANG,
     Damage("zeroed-superblock", _zero(0, 512)),
     Damage("zeroed-1000-3000", _zero(1000, 3000)),
     Damage("zeroed-tail", _zero(16000, 10**9)),
@@ -129,10 +130,12 @@ def _damaged(source: Path, damage: Damage, tmp_path: Path) -> Path:
     return path
 
 
-def _assert_refused_quickly(path: Path, command: tuple[str, ...], words: tuple[str, ...]) -> None:
+def _assert_refused_quickly(path: Path, command: tuple, words: tuple[str, ...], subprocess: bool = False) -> None:
+    """Refused in one line, exit 1, within :data:`LIMIT_S`, the file untouched (in this process unless
+    ``subprocess``: the tracebacks a subprocess would print are caught either way)."""
     before = path.read_bytes()
     t0 = time.perf_counter()
-    proc = lutgen(*command, timeout_s=60)
+    proc = lutgen(*command, timeout_s=60) if subprocess else lutgen_in_process(*command)
     elapsed = time.perf_counter() - t0
     assert_one_line_error(proc, *words)
     assert elapsed < LIMIT_S, f"{command}: {elapsed:.1f} s"
@@ -151,6 +154,14 @@ def test_inspect_refuses_damaged_bytes_of_the_golden_table(damage, tmp_path):
 def test_query_refuses_damaged_bytes(damage, fake_table, tmp_path):
     path = _damaged(fake_table, damage, tmp_path)
     _assert_refused_quickly(path, ("query", path, *ON_GRID_STATE), (str(path),))
+
+
+@pytest.mark.parametrize("command", ["inspect", "query"])
+def test_the_libhdf5_hang_is_one_line_from_the_installed_command(command, tmp_path):
+    """The reproducer of issue 24 (zeroed bytes 4000–12000 of the golden table), as the operator meets it."""
+    path = _damaged(GOLDEN, HANG, tmp_path)
+    args = (command, path, *(ON_GRID_STATE if command == "query" else ()))
+    _assert_refused_quickly(path, args, (str(path), "corrupt", "did not finish"), subprocess=True)
 
 
 @pytest.mark.parametrize("damage", [d for d in DATASET_DAMAGE if d.id not in QUERY_ONLY], ids=lambda d: d.id)
