@@ -48,6 +48,7 @@ def plan_metrics(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
             "peak_grasp_force_n": float(np.abs(report.grasp_wrench[:, :3]).max()),
         },
         "collision_pairs": int(report.pair_count),
+        "collision_rule": report.collision_rule,
         "checks": checks,
         "solver": {
             "approach": {"status": plan.approach.status, "iterations": plan.approach.iterations,

@@ -7,22 +7,15 @@ of body pairs. :meth:`CollisionScene.distances` returns, per pair, the signed di
 body B by ``+ε n`` (or body A by ``-ε n``) increases the distance by ``ε`` to first order.
 :func:`distance_gradient` turns that into ``∂d/∂x`` for any coordinates ``x`` (TrajOpt style).
 
-Engine: coal
-------------
-Distances come from ``coal`` (the maintained successor of FCL, shipped with ``pin``) on the true shapes:
-its capsule–capsule routine is closed form, and its GJK/EPA treats a capsule as a swept segment, so
-box–capsule and box–box run on polytopes, where GJK terminates exactly and EPA finds the exact face.
-python-fcl's signed path is not used: it overstates distances in aligned poses (by up to 1.9 m on
-box–capsule). How the engine is held to the truth: ``tests/test_distance_truth.py`` compares it with an
-exact oracle and with :mod:`planner.distance_closed_form` (verify's engine, which shares no code with this
-one) on seeded adversarial pairs, aligned and touching poses included.
-
-Degenerate normal
------------------
-When coal cannot give a direction (crossing capsule segments, where the depth is ``r_a + r_b`` and any
-normal of the two segments' plane is a valid one-sided gradient), B is probed by a small translation
-``h = 1e-5 m`` along the centre difference, then the world axes, and the normal is read at the probed pose;
-the distance and witness points reported are still those of the true pose.
+Engine
+------
+Distances come from :mod:`planner.distance_closed_form`: exact signed distances of boxes and capsules in
+closed form, vectorised over many poses, so one call sweeps every pair at every via point of an NLP.
+Engines measured and not used: python-fcl's signed path overstates distances in aligned poses (by up to
+1.9 m for a box and a capsule side by side); coal (shipped with ``pin``) is close but not exact in every pose
+(near-parallel pairs off by up to 1.4e-6 m, normals off by up to 0.26 rad at touching faces, and a non-finite
+distance on one near-parallel contact of ``tests/test_distance_truth.py``). ``verify`` checks every plan with
+an engine of its own (:mod:`planner.verify_distance`), so an error in this one is caught by the other.
 """
 
 from __future__ import annotations
@@ -31,18 +24,13 @@ import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
-import coal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planner.distance_closed_form import signed_distance
 from planner.geometry import Box, Capsule, PlacedShape
 
-# Below this witness-point separation (m) with no normal from coal, the normal is taken from a probe.
-_DEGENERATE_TOL_M = 1e-9
-# Probe translation (m) of B in the degenerate case: far above _DEGENERATE_TOL_M, small against shapes.
-_PROBE_STEP_M = 1e-5
-# GJK/EPA stop tolerance (m): well below the 1e-6 m the distances are held to.
-_GJK_TOLERANCE_M = 1e-10
+Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -71,24 +59,35 @@ class PairDistance:
 
     pair: tuple[str, str]  # (body A, body B)
     distance_m: float  # signed: > 0 separated, < 0 minus the penetration depth (m)
-    p_world_a: NDArray[np.float64]  # witness point on A's surface (world, m)
-    p_world_b: NDArray[np.float64]  # witness point on B's surface (world, m)
-    normal_world: NDArray[np.float64]  # unit; moving B by +ε n (or A by -ε n) increases distance_m by ε
+    p_world_a: Array  # witness point on A's surface (world, m)
+    p_world_b: Array  # witness point on B's surface (world, m)
+    normal_world: Array  # unit; moving B by +ε n (or A by -ε n) increases distance_m by ε
     shape_pair: tuple[str, str]  # names of the shape of A and the shape of B that realise the minimum
 
 
 @dataclass(frozen=True)
-class _Placed:
-    """One shape as coal sees it; its transform is rewritten on every sweep."""
+class PairSweep:
+    """Every pair at n poses: ``distance_m`` (n, m), witnesses ``p_world_a``, ``p_world_b`` and unit
+    ``normal_world`` (n, m, 3), and ``combo`` (n, m), the index of the shape pair realising each minimum."""
 
-    body: str
-    name: str
-    obj: coal.CollisionObject
-    T_body_shape: NDArray[np.float64]
-    at_body_origin: bool  # T_body_shape is the identity: skip the product per call
+    distance_m: Array
+    p_world_a: Array
+    p_world_b: Array
+    normal_world: Array
+    combo: NDArray[np.int64]
 
 
-def distance_gradient(pd: PairDistance, J_point_a: ArrayLike, J_point_b: ArrayLike) -> NDArray[np.float64]:
+@dataclass(frozen=True)
+class _ShapePair:
+    """One shape of body A against one shape of body B, scaled, with the frames they move with."""
+
+    frame_a: str
+    placed_a: PlacedShape
+    frame_b: str
+    placed_b: PlacedShape
+
+
+def distance_gradient(pd: PairDistance, J_point_a: ArrayLike, J_point_b: ArrayLike) -> Array:
     """Gradient ``∂d/∂x = nᵀ (J_point_b - J_point_a)`` of a pair's signed distance (m per unit of ``x``).
 
     ``J_point_a`` / ``J_point_b`` (3×n_x) are the Jacobians, w.r.t. any coordinates ``x``, of the world
@@ -115,10 +114,7 @@ def distance_gradient(pd: PairDistance, J_point_a: ArrayLike, J_point_b: ArrayLi
 
 
 class CollisionScene:
-    """Bodies of boxes and capsules and the body pairs whose signed distance is queried.
-
-    The coal objects are built once here; :meth:`distances` only sets transforms and calls ``coal.distance``.
-    """
+    """Bodies of boxes and capsules and the body pairs whose signed distance is queried."""
 
     distance_gradient = staticmethod(distance_gradient)
 
@@ -143,16 +139,10 @@ class CollisionScene:
             raise ValueError(f"duplicate body names in {self._body_names}")
         if isinstance(scale, Mapping) and set(scale) - set(self._body_names):
             raise ValueError(f"scale given for unknown bodies {sorted(set(scale) - set(self._body_names))}")
-        self._request = coal.DistanceRequest()
-        self._request.enable_signed_distance = True
-        self._request.gjk_tolerance = self._request.epa_tolerance = _GJK_TOLERANCE_M
-        self._result = coal.DistanceResult()
-        self._placed: dict[str, list[_Placed]] = {
-            b.name: self._place_body(b, self._scale_of(scale, b.name)) for b in bodies}
+        placed = {b.name: _scaled_shapes(b, self._scale_of(scale, b.name)) for b in bodies}
         self._pairs = self._checked_pairs(pairs)
-        self._pair_shapes = [[(sa, sb) for sa in self._placed[a] for sb in self._placed[b]] for a, b in self._pairs]
-        in_pairs = {name for pair in self._pairs for name in pair}
-        self._used_bodies: tuple[str, ...] = tuple(n for n in self._body_names if n in in_pairs)
+        self._shape_pairs = [[_ShapePair(self.frame_of(a), sa, self.frame_of(b), sb)
+                              for sa in placed[a] for sb in placed[b]] for a, b in self._pairs]
 
     def _checked_pairs(self, pairs: Sequence[tuple[str, str]]) -> tuple[tuple[str, str], ...]:
         out = tuple((str(a), str(b)) for a, b in pairs)
@@ -174,29 +164,6 @@ class CollisionScene:
         if not (math.isfinite(s) and s > 0.0):
             raise ValueError(f"scale of body {body!r} must be finite and > 0, got {s}")
         return s
-
-    @staticmethod
-    def _place_body(body: CollisionBody, scale: float) -> list[_Placed]:
-        names = [s.name for s in body.shapes]
-        if not names:
-            raise ValueError(f"body {body.name!r} has no shapes")
-        if len(set(names)) != len(names):
-            raise ValueError(f"body {body.name!r}: duplicate shape names {names}")
-        return [CollisionScene._place(body.name, placed, scale) for placed in body.shapes]
-
-    @staticmethod
-    def _place(body: str, placed: PlacedShape, scale: float) -> _Placed:
-        shape = placed.shape.scaled(scale)
-        if isinstance(shape, Box):
-            geom = coal.Box(*shape.size_m)
-        elif isinstance(shape, Capsule):
-            geom = coal.Capsule(shape.radius_m, shape.length_m)  # centred, axis z: the convention of geometry
-        else:
-            raise ValueError(f"body {body!r} shape {placed.name!r}: unsupported shape type {type(shape).__name__}")
-        T = np.array(placed.T_body_shape, dtype=float)
-        if T.shape != (4, 4):
-            raise ValueError(f"body {body!r} shape {placed.name!r}: T_body_shape must be 4×4, got {T.shape}")
-        return _Placed(body, placed.name, coal.CollisionObject(geom), T, bool(np.array_equal(T, np.eye(4))))
 
     @property
     def pairs(self) -> tuple[tuple[str, str], ...]:
@@ -221,85 +188,64 @@ class CollisionScene:
         Raises:
             KeyError: a body of some pair has no pose.
         """
-        d, PA, PB, N, best = self._sweep(T_world_frame)
-        return [PairDistance(pair, float(d[k]), PA[k], PB[k], N[k], (sa.name, sb.name))
-                for k, (pair, (sa, sb)) in enumerate(zip(self._pairs, best, strict=True))]
+        sweep = self.sweep({f: np.asarray(T, dtype=float)[None] for f, T in T_world_frame.items()})
+        out = []
+        for k, pair in enumerate(self._pairs):
+            sp = self._shape_pairs[k][sweep.combo[0, k]]
+            out.append(PairDistance(pair, float(sweep.distance_m[0, k]), sweep.p_world_a[0, k],
+                                    sweep.p_world_b[0, k], sweep.normal_world[0, k],
+                                    (sp.placed_a.name, sp.placed_b.name)))
+        return out
 
-    def distance_arrays(self, T_world_frame: Mapping[str, ArrayLike]) -> tuple[NDArray[np.float64], ...]:
+    def distance_arrays(self, T_world_frame: Mapping[str, ArrayLike]) -> tuple[Array, ...]:
         """:meth:`distances` as arrays, one row per pair: distances (m), witness points on A and on B, unit
-        normals (world). For the NLPs' callbacks, which need no per-pair objects."""
-        return self._sweep(T_world_frame)[:4]
+        normals (world)."""
+        sweep = self.sweep({f: np.asarray(T, dtype=float)[None] for f, T in T_world_frame.items()})
+        return sweep.distance_m[0], sweep.p_world_a[0], sweep.p_world_b[0], sweep.normal_world[0]
 
-    def _set_poses(self, T_world_frame: Mapping[str, ArrayLike]) -> None:
-        for name in self._used_bodies:
-            frame = self.frame_of(name)
-            try:
-                T_wb = np.asarray(T_world_frame[frame], dtype=float)
-            except KeyError:
-                raise KeyError(f"no pose given for collision body {name!r} (frame {frame!r})") from None
-            for placed in self._placed[name]:
-                T = T_wb if placed.at_body_origin else T_wb @ placed.T_body_shape
-                placed.obj.setRotation(T[:3, :3])  # two setters: ~3× cheaper than a Transform3s
-                placed.obj.setTranslation(T[:3, 3])
-
-    def _sweep(self, T_world_frame: Mapping[str, ArrayLike]) -> tuple:
-        """``(d, PA, PB, N, best)``: what :meth:`distances` reports, and the shape pair realising each."""
-        self._set_poses(T_world_frame)
-        res, req, coal_distance = self._result, self._request, coal.distance
+    def sweep(self, T_world_frame: Mapping[str, Array]) -> PairSweep:
+        """Every pair at n pose sets at once: ``T_world_frame`` maps frame names to (n, 4, 4) stacks."""
+        n = len(next(iter(T_world_frame.values())))
         m = len(self._pairs)
-        d, PA, PB, N = np.empty(m), np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
-        best: list[tuple[_Placed, _Placed]] = []
-        for k, combos in enumerate(self._pair_shapes):
-            d[k] = math.inf
-            pair_best = combos[0]
-            for sa, sb in combos:
-                res.clear()
-                dist = coal_distance(sa.obj, sb.obj, req, res)
-                if dist < d[k]:
-                    d[k] = dist
-                    PA[k], PB[k], N[k] = res.getNearestPoint1(), res.getNearestPoint2(), res.normal
-                    pair_best = (sa, sb)
-            best.append(pair_best)
-            if not _consistent(d[k], PA[k], PB[k], N[k]) or (d[k] < 0.0 and not self._pushes_apart(*pair_best,
-                                                                                                      d[k], N[k])):
-                N[k], PA[k] = self._probe(*pair_best)
-                PB[k] = PA[k] + d[k] * N[k]
-        return d, PA, PB, N, best
-
-    def _pushes_apart(self, sa: _Placed, sb: _Placed, d: float, n: NDArray[np.float64]) -> bool:
-        """Whether moving B by ``h n`` increases the distance by ``h`` (coal's normal of crossing capsule cores
-        is unit and consistent with its points but not a direction of the depth)."""
-        p_b = np.array(sb.obj.getTransform().getTranslation())
-        sb.obj.setTranslation(p_b + _PROBE_STEP_M * n)
-        self._result.clear()
-        moved = coal.distance(sa.obj, sb.obj, self._request, self._result)
-        sb.obj.setTranslation(p_b)
-        return abs(moved - d - _PROBE_STEP_M) < 0.1 * _PROBE_STEP_M
-
-    def _probe(self, sa: _Placed, sb: _Placed) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Unit normal (world) and A's witness point of a pair coal gave no direction for (module docstring)."""
-        res, req = self._result, self._request
-        p_b = np.array(sb.obj.getTransform().getTranslation())
-        candidates = [p_b - np.array(sa.obj.getTransform().getTranslation()), *np.eye(3)]
-        try:
-            for u in candidates:
-                norm_u = float(np.linalg.norm(u))
-                if norm_u < _DEGENERATE_TOL_M:
-                    continue
-                sb.obj.setTranslation(p_b + (_PROBE_STEP_M / norm_u) * u)
-                res.clear()
-                dist = coal.distance(sa.obj, sb.obj, req, res)
-                pa, pb, n = res.getNearestPoint1(), res.getNearestPoint2(), np.array(res.normal)
-                if _consistent(dist, pa, pb, n) and self._pushes_apart(sa, sb, dist, n):
-                    return n, pa
-        finally:
-            sb.obj.setTranslation(p_b)
-        raise RuntimeError(f"no contact normal found for shapes {sa.name!r}, {sb.name!r}")  # a world axis always works
+        d = np.full((n, m), np.inf)
+        pa, pb, nn = np.zeros((n, m, 3)), np.zeros((n, m, 3)), np.zeros((n, m, 3))
+        combo = np.zeros((n, m), dtype=np.int64)
+        for k, shape_pairs in enumerate(self._shape_pairs):
+            for c, sp in enumerate(shape_pairs):
+                r = signed_distance(sp.placed_a.shape, _pose(T_world_frame, sp.frame_a, sp.placed_a),
+                                    sp.placed_b.shape, _pose(T_world_frame, sp.frame_b, sp.placed_b))
+                better = r.distance_m < d[:, k]
+                d[better, k] = r.distance_m[better]
+                pa[better, k], pb[better, k], nn[better, k] = (r.p_world_a[better], r.p_world_b[better],
+                                                               r.normal_world[better])
+                combo[better, k] = c
+        return PairSweep(d, pa, pb, nn, combo)
 
 
-def _consistent(d: float, pa: NDArray[np.float64], pb: NDArray[np.float64], n: NDArray[np.float64]) -> bool:
-    """Whether coal's output is usable as is: a unit normal with ``p_b − p_a = d n``."""
-    return abs(float(n @ n) - 1.0) < 1e-9 and float(np.linalg.norm(pb - pa - d * n)) < 1e-7
+def _scaled_shapes(body: CollisionBody, scale: float) -> list[PlacedShape]:
+    names = [s.name for s in body.shapes]
+    if not names:
+        raise ValueError(f"body {body.name!r} has no shapes")
+    if len(set(names)) != len(names):
+        raise ValueError(f"body {body.name!r}: duplicate shape names {names}")
+    out = []
+    for placed in body.shapes:
+        if not isinstance(placed.shape, Box | Capsule):
+            raise ValueError(f"body {body.name!r} shape {placed.name!r}: unsupported shape type "
+                             f"{type(placed.shape).__name__}")
+        T = np.array(placed.T_body_shape, dtype=float)
+        if T.shape != (4, 4):
+            raise ValueError(f"body {body.name!r} shape {placed.name!r}: T_body_shape must be 4×4, got {T.shape}")
+        out.append(PlacedShape(placed.name, placed.shape.scaled(scale), T))
+    return out
+
+
+def _pose(T_world_frame: Mapping[str, Array], frame: str, placed: PlacedShape) -> Array:
+    try:
+        T = T_world_frame[frame]
+    except KeyError:
+        raise KeyError(f"no pose given for collision frame {frame!r}") from None
+    return T if np.array_equal(placed.T_body_shape, np.eye(4)) else T @ placed.T_body_shape
 
 
 def default_pairs(chaser_bodies: Sequence[str], adjacent: Collection[tuple[str, str]],

@@ -72,7 +72,11 @@ def signed_distance(shape_a: Shape, T_world_a: Array, shape_b: Shape, T_world_b:
     else:
         raise TypeError(f"unsupported shapes {type(shape_a).__name__}, {type(shape_b).__name__}")
     ra, rb = _radius(shape_a), _radius(shape_b)
-    return SignedDistances(d - ra - rb, ca + ra * n, cb - rb * n, n)
+    d = d - ra - rb
+    p_a = ca + ra * n
+    # B's witness from the identity: cb - rb n up to rounding, but exact to it where the normal comes from core
+    # points a few nm apart (nearly touching cores), whose direction carries that rounding
+    return SignedDistances(d, p_a, p_a + d[:, None] * n, n)
 
 
 def _radius(shape: Shape) -> float:
@@ -255,51 +259,16 @@ def _box_segment_penetration(half: Array, a: Array, du: Array) -> tuple[Array, A
     rows = np.arange(m)
     depth = depth_axes[rows, k]
     n = axes[rows, k] * np.where(push_plus[rows, k] <= push_minus[rows, k], 1.0, -1.0)[:, None]
-    c_seg = np.empty((m, 3))
-    face = k < 3
-    c_seg[face] = _deepest_segment_point(half, a[face], du[face], n[face], k[face])
-    c_box = c_seg + depth[:, None] * n
-    edge = ~face
-    if np.any(edge):
-        c_box[edge], c_seg[edge] = _support_edge_contact(half, a[edge], du[edge], n[edge], k[edge] - 3)
-    return depth, c_box, c_seg, n
-
-
-def _deepest_segment_point(half: Array, a: Array, du: Array, n: Array, axis: Array) -> Array:
-    """Point of each segment deepest along −n; for a segment parallel to the face, the middle of its part over
-    the face (the contact set after the separating translation)."""
-    s0, s1 = _dot(a, n), _dot(a + du, n)
-    s = np.where(s0 <= s1, 0.0, 1.0)
-    tie = np.abs(s1 - s0) <= 1e-12 * np.maximum(np.linalg.norm(du, axis=-1), 1.0)
-    if np.any(tie):
-        lo, hi = np.zeros(len(a)), np.ones(len(a))
-        for i in range(3):
-            moving = (np.abs(du[:, i]) > 0.0) & (axis != i)
-            step = np.where(moving, du[:, i], 1.0)
-            t1, t2 = (-half[i] - a[:, i]) / step, (half[i] - a[:, i]) / step
-            lo = np.where(moving, np.maximum(lo, np.minimum(t1, t2)), lo)
-            hi = np.where(moving, np.minimum(hi, np.maximum(t1, t2)), hi)
-        s = np.where(tie, np.clip(0.5 * (lo + hi), 0.0, 1.0), s)
-    return a + s[:, None] * du
-
-
-def _support_edge_contact(half: Array, a: Array, du: Array, n: Array, axis: Array) -> tuple[Array, Array]:
-    """Closest points of each segment and the box edge along ``axis`` that is extreme along +n."""
-    signs = np.where(n >= 0.0, 1.0, -1.0)
-    start = signs * half
-    rows = np.arange(len(a))
-    start[rows, axis] = -half[axis]
-    direction = np.zeros_like(a)
-    direction[rows, axis] = 2.0 * half[axis]
-    s, t = closest_segment_params(a, du, start, direction)
-    return start + t[:, None] * direction, a + s[:, None] * du
+    # witnesses: a contact point of the pose separated by the depth (touching there), moved back
+    _, c_box, c_seg = _box_segment_separated(half, a + depth[:, None] * n, du)
+    return depth, c_box, c_seg - depth[:, None] * n, n
 
 
 def box_box(half_a: Array, T_a: Array, half_b: Array, T_b: Array) -> tuple[Array, Array, Array, Array]:
     """Signed core distance (m) of two boxes; ``(d, c_a, c_b, n)`` with ``c_b − c_a = d n`` (world)."""
     R = np.einsum("nji,njk->nik", T_a[:, :3, :3], T_b[:, :3, :3])  # B's axes in A's frame (columns)
     c = _to_frame(T_a, T_b[:, :3, 3])
-    depth, n, k = _box_box_sat(half_a, half_b, R, c)
+    depth, n = _box_box_sat(half_a, half_b, R, c)
     inside = depth >= 0.0
     d, ca, cb = _box_box_separated(half_a, half_b, R, c)
     nn = (cb - ca) / np.maximum(d, DEGENERATE_M)[:, None]
@@ -307,8 +276,10 @@ def box_box(half_a: Array, T_a: Array, half_b: Array, T_b: Array) -> tuple[Array
     nn[touching] = n[touching]
     if np.any(inside):
         d[inside] = -depth[inside]
-        ca[inside], cb[inside] = _box_box_contact(half_a, half_b, R[inside], c[inside], depth[inside], n[inside],
-                                                  k[inside])
+        # witnesses: a contact point of the pose separated by the depth (touching there), B's moved back
+        shift = depth[inside, None] * n[inside]
+        _, ca[inside], cb_touch = _box_box_separated(half_a, half_b, R[inside], c[inside] + shift)
+        cb[inside] = cb_touch - shift
         nn[inside] = n[inside]
     return d, _to_world(T_a, ca), _to_world(T_a, cb), _to_world(T_a, nn, direction=True)
 
@@ -326,8 +297,8 @@ def _box_box_axes(R: Array) -> tuple[Array, Array]:
 
 
 def _box_box_sat(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Array, Array, Array]:
-    """Largest-overlap-free depth over the 15 axes: ≥ 0 when the boxes meet (then it is the penetration
-    depth), < 0 when some axis separates them. Also the axis (B moves along it) and its index."""
+    """Smallest overlap over the 15 axes: ≥ 0 when the boxes meet (then it is the penetration depth), < 0 when
+    some axis separates them; and that axis, oriented so that moving B along it separates them."""
     axes, valid = _box_box_axes(R)
     r_a = _dot(np.abs(axes), half_a)
     r_b = np.einsum("nkj,j->nk", np.abs(np.einsum("nki,nij->nkj", axes, R)), half_b)
@@ -338,7 +309,7 @@ def _box_box_sat(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Arra
     k = np.argmin(depth_axes, axis=1)
     rows = np.arange(len(R))
     n = axes[rows, k] * np.where(push_plus[rows, k] <= push_minus[rows, k], 1.0, -1.0)[:, None]
-    return depth_axes[rows, k], n, k
+    return depth_axes[rows, k], n
 
 
 def _box_box_separated(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Array, Array, Array]:
@@ -363,37 +334,3 @@ def _box_box_separated(half_a: Array, half_b: Array, R: Array, c: Array) -> tupl
     return dist[rows, k], pa[rows, k], pb[rows, k]
 
 
-def _box_box_contact(half_a: Array, half_b: Array, R: Array, c: Array, depth: Array, n: Array,
-                     k: Array) -> tuple[Array, Array]:
-    """Witness points (A's frame) of penetrating boxes: the deepest vertex for a face axis (on A's face when a
-    vertex of B lies over it, else A's vertex in B's face), the support edges' closest points for an edge axis."""
-    vb = c[:, None, :] + np.einsum("nij,kj->nki", R, _VERTEX_SIGNS * half_b)
-    va = np.broadcast_to(_VERTEX_SIGNS * half_a, vb.shape)
-    pb = vb[np.arange(len(R)), np.argmin(_dot(vb, n[:, None, :]), axis=1)]
-    pa_face_b = va[np.arange(len(R)), np.argmax(_dot(va, n[:, None, :]), axis=1)]
-    pa = np.where((k < 3)[:, None], pb + depth[:, None] * n, pa_face_b)
-    pb = np.where((k < 3)[:, None], pb, pa_face_b - depth[:, None] * n)
-    edge = k >= 6
-    if np.any(edge):
-        i, j = (k[edge] - 6) // 3, (k[edge] - 6) % 3
-        pa[edge], pb[edge] = _box_box_edge_contact(half_a, half_b, R[edge], c[edge], n[edge], i, j)
-    return pa, pb
-
-
-def _box_box_edge_contact(half_a: Array, half_b: Array, R: Array, c: Array, n: Array, i: Array,
-                          j: Array) -> tuple[Array, Array]:
-    """Closest points of A's edge along axis i extreme along +n and B's edge along its axis j extreme along −n."""
-    rows = np.arange(len(R))
-    start_a = np.where(n >= 0.0, 1.0, -1.0) * half_a
-    start_a[rows, i] = -half_a[i]
-    dir_a = np.zeros_like(n)
-    dir_a[rows, i] = 2.0 * half_a[i]
-    n_b = np.einsum("nji,nj->ni", R, n)  # n in B's frame
-    local_b = np.where(n_b >= 0.0, -1.0, 1.0) * half_b
-    local_b[rows, j] = -half_b[j]
-    dir_b_local = np.zeros_like(n)
-    dir_b_local[rows, j] = 2.0 * half_b[j]
-    start_b = c + np.einsum("nij,nj->ni", R, local_b)
-    dir_b = np.einsum("nij,nj->ni", R, dir_b_local)
-    s, t = closest_segment_params(start_a, dir_a, start_b, dir_b)
-    return start_a + s[:, None] * dir_a, start_b + t[:, None] * dir_b

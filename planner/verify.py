@@ -59,7 +59,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.compound import compound_robot
+from planner.contact_rule import exemption_note
 from planner.phases.approach_guess import target_motion
+from planner.scene import scene_layout
 from planner.verify_checks import (
     END_VELOCITY_TOL_RAD_S,
     FEASIBILITY_TOL,
@@ -126,6 +128,7 @@ class VerifyReport:
     pair_count: int = 0
     step_s: float = 0.0  # largest gap between verified samples
     t_grasp_s: float = 0.0
+    collision_rule: str = ""  # which pair was exempt or relaxed, when (planner.contact_rule.exemption_note)
 
 
 def verify(plan, step_s: float = DEFAULT_STEP_S) -> VerifyReport:  # noqa: ANN001 - a planner.plan.GraspPlan
@@ -194,7 +197,8 @@ def verify(plan, step_s: float = DEFAULT_STEP_S) -> VerifyReport:  # noqa: ANN00
         target_pose=pose_samples(T_target[sel]), base_pose=PoseSamples(x[sel, :3].copy(), x[sel, 3:].copy()),
         momentum_world=momentum, pair_min_distance_m=contact.pair_min_distance_m,
         pair_count=len(contact.pair_min_distance_m),
-        step_s=float(np.diff(t[sel]).max()) if len(sel) > 1 else 0.0, t_grasp_s=t_grasp)
+        step_s=float(np.diff(t[sel]).max()) if len(sel) > 1 else 0.0, t_grasp_s=t_grasp,
+        collision_rule=exemption_note(scene_layout(sc.robot, sc.target).gripper_handle))
 
 
 def summary_lines(report: VerifyReport) -> list[str]:

@@ -19,7 +19,7 @@ SCENARIO_I = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "sc
 
 @pytest.fixture(scope="module")
 def chain():
-    """d(q): the scenario's 29 pair distances as the NLP builds them, arm joints → FK → callback."""
+    """d(q): the scenario's pair distances as the NLP builds them, arm joints → FK → callback."""
     sc = load_scenario(SCENARIO_I)
     robot = sc.robot
     scene = build_scene(sc)
@@ -54,8 +54,8 @@ def test_values_equal_the_scene_sweep(chain):
 
 def test_jacobian_through_the_kinematics_matches_central_differences(chain):
     """The witness-point Jacobian, chained by CasADi through the symbolic FK, against central differences
-    of the distances in joint space (h = 1e-6 rad). The shapes' cores are segments and boxes, on which
-    fcl's GJK is exact to rounding, so 1e-5 relative per pair is a real bound (FD truncation ~h²)."""
+    of the distances in joint space (h = 1e-6 rad). The engine is closed form, exact to rounding, so 1e-5
+    relative per pair is a real bound (FD truncation ~h²)."""
     sc, _, _, _, _, f = chain
     h = 1e-6
     checked = 0
@@ -81,12 +81,33 @@ def test_sweep_cache_returns_each_input_its_own_distances(chain):
     for _ in range(2):
         for q, d in zip(qs, first, strict=True):
             np.testing.assert_array_equal(np.asarray(f(q)[0]).ravel(), d)
-    fresh = SceneDistanceCallback("fresh_distance", scene, cb.body_order)
+    fresh = SceneDistanceCallback("fresh_distance", scene, cb.frames)
     x = np.random.default_rng(4).normal(size=cb.n_x)
     x.reshape(-1, 12)[:, :9] = np.stack([quat_to_matrix(v).ravel(order="F") for v in
-                                         np.random.default_rng(5).normal(size=(len(cb.body_order), 4))])
+                                         np.random.default_rng(5).normal(size=(len(cb.frames), 4))])
     cb.evaluate(x)  # fills the cache; the Jacobian below is assembled from the cached sweep
     d_cached, J_cached = cb.evaluate(x, with_jacobian=True)
     d_fresh, J_fresh = fresh.evaluate(x, with_jacobian=True)
     np.testing.assert_array_equal(d_cached, d_fresh)
     np.testing.assert_array_equal(J_cached, J_fresh)
+
+
+def test_many_points_in_one_call_equal_one_point_at_a_time(chain):
+    """The NLPs sweep every via point in one call: values and Jacobian blocks equal the one-point callback's."""
+    sc, scene, cb, fk, R_target, _ = chain
+    n = 3
+    many = SceneDistanceCallback("test_distance_many", scene, cb.frames, n)
+    xs = []
+    for q in _random_configurations(sc, n, 4):
+        out = fk(q)
+        blocks = [np.asarray(pose_vector(out[2 * i], out[2 * i + 1])).ravel() for i in range(len(sc.robot.body_names))]
+        blocks.append(np.asarray(pose_vector(ca.DM(R_target), ca.DM(sc.target.p_world_com))).ravel())
+        xs.append(np.concatenate(blocks))
+    d_many, J_many = many.evaluate(np.concatenate(xs), with_jacobian=True)
+    m, nx = cb.n_out, cb.n_x
+    for j, x in enumerate(xs):
+        d_one, J_one = cb.evaluate(x, with_jacobian=True)
+        np.testing.assert_array_equal(d_many[j * m: (j + 1) * m], d_one)
+        np.testing.assert_array_equal(J_many[j * m: (j + 1) * m, j * nx: (j + 1) * nx], J_one)
+        off_block = np.delete(J_many[j * m: (j + 1) * m], np.s_[j * nx: (j + 1) * nx], axis=1)
+        assert not off_block.any()

@@ -244,9 +244,9 @@ class ApproachProblem:
         # ---- NLP: smooth part + collision callbacks ----------------------------------------------
         self.scene = build_scene(sc, scale=1.0, gripper_handle=True)
         body_order = [*self.robot.body_names, TARGET_BODY]
-        self.distance_cb = SceneDistanceCallback("approach_distance", self.scene, body_order)
         all_poses = [*via_poses, *tr_poses]
-        dists = [self.distance_cb(pz) for pz in all_poses]
+        self.distance_cb = SceneDistanceCallback("approach_distance", self.scene, body_order, len(all_poses))
+        dists = [self.distance_cb(ca.vertcat(*all_poses))]
         c = sc.costs
         cost = c.approach_energy * energy - c.manipulability * manip
         rob = self.robot
@@ -274,16 +274,16 @@ class ApproachProblem:
         if c.min_distance > 0:
             # Eq. 15 on overscaled geometry: maximise a slack s below every scaled distance
             self.scaled_scene = build_scene(sc, scale=c.overscale)
-            self.scaled_cb = SceneDistanceCallback("approach_distance_scaled", self.scaled_scene, body_order)
+            self.scaled_cb = SceneDistanceCallback("approach_distance_scaled", self.scaled_scene, body_order,
+                                                   len(all_poses))
             s = ca.MX.sym("s_dist")
             extra_w.append(s)
             lbw_extra.append(-10.0)
             ubw_extra.append(10.0)
-            n_scaled = len(self.scaled_scene.pairs)
-            for pz in all_poses:
-                g_parts.append(self.scaled_cb(pz) - s)
-                lbg.append(np.zeros(n_scaled))
-                ubg.append(np.full(n_scaled, np.inf))
+            n_scaled = len(self.scaled_scene.pairs) * len(all_poses)
+            g_parts.append(self.scaled_cb(ca.vertcat(*all_poses)) - s)
+            lbg.append(np.zeros(n_scaled))
+            ubg.append(np.full(n_scaled, np.inf))
             cost = cost - c.min_distance * s
         self.n_extra = len(extra_w)
         self.lbg = np.concatenate(lbg)
@@ -322,11 +322,11 @@ class ApproachProblem:
             return [], np.zeros(0)
         scene = build_collision_scene(SceneLayout(layout.bodies, (layout.gripper_handle,), None, ()))
         gripper = layout.gripper_handle[0]
-        self.blend_cb = SceneDistanceCallback("blend_distance", scene, [gripper, TARGET_BODY])
+        self.blend_cb = SceneDistanceCallback("blend_distance", scene, [gripper, TARGET_BODY], len(BLEND_CHECK_NODES))
         T_ee_gripper = _ee_to_body(self.robot, gripper)
         T_bg, com = sc.target.grasp.T_body_grasp, ca.DM(sc.target.p_world_com)
         b0, t2, margin = sc.approach.pregrasp_backoff_m, sc.phases.tracking_s, sc.limits.collision_margin_m
-        dists, bounds, t_prev = [], [], 0.0
+        poses, bounds, t_prev = [], [], 0.0
         for frac in BLEND_CHECK_NODES:
             t = frac * t2
             att, om = predict_step(att, om, t - t_prev)
@@ -340,10 +340,10 @@ class ApproachProblem:
             R_des = ca.mtimes(R_ee0, ca.DM.eye(3) + phi + 0.5 * ca.mtimes(phi, phi))
             R_grip = ca.mtimes(R_des, ca.DM(T_ee_gripper[:3, :3]))
             p_grip = p_des + ca.mtimes(R_des, ca.DM(T_ee_gripper[:3, 3]))
-            dists.append(self.blend_cb(ca.vertcat(pose_vector(R_grip, p_grip), pose_vector(R_t, com))))
+            poses.append(ca.vertcat(pose_vector(R_grip, p_grip), pose_vector(R_t, com)))
             bounds.append(required_clearance_m([layout.gripper_handle], layout.gripper_handle, margin, TRACKING,
                                                closed_backoff_m(b0, t, t2)))
-        return dists, np.concatenate(bounds)
+        return [self.blend_cb(ca.vertcat(*poses))], np.concatenate(bounds)
 
     def _clearance_bounds(self, k: int, tr_times: list[float]) -> Array:
         """Lower bounds (m) of the distances at the k via points, then at the tracking nodes (contact rule)."""

@@ -247,8 +247,8 @@ class StabilizationProblem:
             poses.append(ca.vertcat(*blocks))
         self.scene = build_scene(sc)
         self.distance_cb = SceneDistanceCallback("stabilization_distance", self.scene,
-                                                 [*robot.body_names, TARGET_BODY])
-        dists = [self.distance_cb(pz) for pz in poses]
+                                                 [*robot.body_names, TARGET_BODY], len(poses))
+        dists = [self.distance_cb(ca.vertcat(*poses))]
         q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx])
         qd_box = ca.vertcat(*[Qdn[i, :].T for i in via_idx])
         M_all = ca.vertcat(*torques)
