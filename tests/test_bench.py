@@ -106,9 +106,11 @@ def test_machine_names_cpus_mode_and_every_library_version(bench):
 def test_primitives_sit_next_to_pinocchio(bench):
     p = bench["primitives"]
     for key in ("forward_kinematics_casadi_us", "forward_kinematics_pinocchio_us", "momentum_map_and_jstar_casadi_us",
-                "centroidal_map_pinocchio_us", "collision_sweep_us", "verify_plan_s"):
+                "centroidal_map_pinocchio_us", "collision_sweep_us", "collision_sweep_23_points_us",
+                "collision_verify_1000_samples_us", "verify_plan_s"):
         _assert_timing(p[key], key)
-    assert p["collision_pairs"] == 29
+    assert p["collision_pairs"] == 37
+    assert p["collision_engines_max_difference_m"] <= 1e-6  # the NLPs' and verify's engines agree
     assert p["verify_plan"]["plan_samples"] > 1000  # a whole plan, not a fragment
     assert _positive(p["verify_plan_simulate_s"])
 

@@ -27,10 +27,9 @@ def _primitives(p: dict[str, Any]) -> tuple[str, list[Row]]:
             ("FK all bodies, pinocchio", timing(p["forward_kinematics_pinocchio_us"], "µs")),
             ("momentum map + J*, CasADi", timing(p["momentum_map_and_jstar_casadi_us"], "µs")),
             ("centroidal map, pinocchio", timing(p["centroidal_map_pinocchio_us"], "µs")),
-            (f"collision sweep ({p['collision_pairs']} pairs), coal", timing(p["collision_sweep_us"], "µs")),
-            ("collision sweep, closed form, 1 sample", timing(p["collision_sweep_closed_form_us"], "µs")),
-            ("collision sweep, closed form, 1000 samples", timing(p["collision_sweep_closed_form_1000_samples_us"],
-                                                                  "µs")),
+            (f"collision sweep ({p['collision_pairs']} pairs), NLP engine", timing(p["collision_sweep_us"], "µs")),
+            ("collision sweep, NLP engine, 23 via points", timing(p["collision_sweep_23_points_us"], "µs")),
+            ("collision sweep, verify's engine, 1000 samples", timing(p["collision_verify_1000_samples_us"], "µs")),
             (f"verify one plan ({p['verify_plan']['plan_samples']} samples)", timing(p["verify_plan_s"]))]
     return "primitives", rows
 
