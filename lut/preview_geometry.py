@@ -108,7 +108,9 @@ def target_shapes(doc: dict[str, Any]) -> tuple[list[tuple[PlacedShape, bool]], 
         return out, ""
     inertia = np.asarray(target.get("inertia_kg_m2", [1.0, 1.0, 1.0]), dtype=float)
     mass = float(target.get("mass_kg", 1.0))
-    Ix, Iy, Iz = inertia
+    # moments about the body axes: the plan file has the 3×3 tensor (body frame), older ones the 3 moments; the
+    # stand-in box is drawn along the body axes
+    Ix, Iy, Iz = np.diag(inertia) if inertia.shape == (3, 3) else inertia
     sides = [np.sqrt(max(6.0 * v / mass, 1e-4)) for v in (Iy + Iz - Ix, Ix + Iz - Iy, Ix + Iy - Iz)]
     return [(PlacedShape("inertia-equivalent box", Box(tuple(sides))), False)], \
         "target drawn as its inertia-equivalent box: the plan has no target.shapes"

@@ -133,7 +133,7 @@ def test_query_between_grid_points_interpolates_consistent_corners(table_query):
     assert min(taus) - 1e-9 <= rec["start_delay_s"] <= max(taus) + 1e-9
     result = tq.query(state, budget_s=1.0)
     assert set(result.latency_s) >= {"lookup_interpolate_s", "simulate_s", "verify_s", "total_s"}
-    assert result.report.pair_count == 29
+    assert result.report.pair_count == 37
 
 
 def test_query_cli_writes_a_verified_plan(tmp_path):
@@ -142,14 +142,14 @@ def test_query_cli_writes_a_verified_plan(tmp_path):
     proc = subprocess.run([LUTGEN, "query", str(GOLDEN), "--attitude", "0.991444861,0,0,0.130526192",
                            "--omega-deg-s", "0,0,3.9", "--budget-s", "100", "--out", str(out)],
                           capture_output=True, text=True, timeout=300)
-    assert proc.returncode in (0, 2), proc.stderr
+    assert proc.returncode == 0, proc.stdout + proc.stderr  # a state inside a fully feasible table gets a plan
     assert "Traceback" not in proc.stderr
     doc = json.loads(out.read_text())
     assert doc["schema"] == "lutgen.plan/1"
-    assert doc["status"] == ("feasible" if proc.returncode == 0 else "infeasible")
+    assert doc["status"] == "feasible"
     assert "lookup" in proc.stdout and "verify" in proc.stdout  # the latency breakdown is printed
     # the viewer fields: per sample the closest pair and its witness points, whose separation is the
-    # signed distance wherever the shapes are apart (python-fcl's witness points, not our own numbers)
+    # signed distance wherever the shapes are apart (verify's engine's witness points)
     s = doc["samples"]
     n = len(s["t"])
     assert len(s["closest_pair"]) == len(s["min_distance_m"]) == n
