@@ -312,8 +312,17 @@ def run_closed_form(cs: CaseSet) -> EngineResult:
                         np.asarray(r.p_world_b, float), np.asarray(r.normal_world, float))
 
 
+def run_verify_engine(cs: CaseSet) -> EngineResult:
+    """verify's own engine (:mod:`planner.verify_distance`, no code shared with the others): one vectorised call."""
+    from planner.verify_distance import shape_distance
+
+    r = shape_distance(cs.shape_a, cs.T_a, cs.shape_b, cs.T_b)
+    return EngineResult(np.asarray(r.distance_m, float), np.asarray(r.p_world_a, float),
+                        np.asarray(r.p_world_b, float), np.asarray(r.normal_world, float))
+
+
 ENGINES: dict[str, Callable[[CaseSet], EngineResult]] = {
-    "collision_scene": run_collision_scene, "closed_form": run_closed_form,
+    "collision_scene": run_collision_scene, "closed_form": run_closed_form, "verify_engine": run_verify_engine,
 }
 
 
@@ -697,12 +706,14 @@ def rotation_fd(cs: CaseSet, k: int) -> Array:
     return np.array([(f(h * e) - f(-h * e)) / (2 * h) for e in np.eye(3)])
 
 
-def test_engines_agree_with_each_other(case_sets: list[CaseSet], engine_results: dict[str, list[EngineResult]]
-                                       ) -> None:
-    """The NLP engine and verify's closed form give the same signed distance to 1e-6 m on every pair."""
-    pairs = zip(case_sets, engine_results["collision_scene"], engine_results["closed_form"], strict=True)
+@pytest.mark.parametrize("first, second", list(itertools.combinations(ENGINES, 2)))
+def test_engines_agree_with_each_other(first: str, second: str, case_sets: list[CaseSet],
+                                       engine_results: dict[str, list[EngineResult]]) -> None:
+    """Every two engines (the NLPs', the closed form, verify's own) give the same signed distance to 1e-6 m on
+    every pair."""
+    pairs = zip(case_sets, engine_results[first], engine_results[second], strict=True)
     messages = [msg for cs, r1, r2 in pairs
-                if (msg := _worst(cs, np.abs(r1.d - r2.d), DISTANCE_TOL_M, "collision_scene vs closed_form (m)"))]
+                if (msg := _worst(cs, np.abs(r1.d - r2.d), DISTANCE_TOL_M, f"{first} vs {second} (m)"))]
     assert not messages, "\n\n".join(messages)
 
 
@@ -873,10 +884,15 @@ def test_real_scene_collision_scene_witnesses_lie_on_the_reported_shapes(scene_c
     assert not errors, f"{len(errors)} bad witnesses:\n" + "\n".join(errors[:20])
 
 
-def test_real_scene_closed_form_distances_equal_oracle(scene_cases: SceneCases, scene_oracle: tuple) -> None:
-    """verify's closed form gives every pair's exact distance (min over shape pairs) to 1e-6 m on the lattice."""
-    from planner.distance_closed_form import signed_distance as closed_form
+@pytest.mark.parametrize("engine", ["closed_form", "verify_engine"])
+def test_real_scene_closed_form_distances_equal_oracle(engine: str, scene_cases: SceneCases,
+                                                       scene_oracle: tuple) -> None:
+    """The vectorised closed forms (:mod:`planner.distance_closed_form`, verify's :mod:`planner.verify_distance`)
+    give every pair's exact distance (min over shape pairs) to 1e-6 m on the lattice."""
+    from planner.distance_closed_form import signed_distance as closed_form_distance
+    from planner.verify_distance import shape_distance
 
+    closed_form = closed_form_distance if engine == "closed_form" else shape_distance
     pairs, d_ref = scene_oracle
     bodies = scene_cases.body_shapes()
     stack = {name: np.array([f[name] for f in scene_cases.frames]) for name in scene_cases.frames[0]}
@@ -886,7 +902,7 @@ def test_real_scene_closed_form_distances_equal_oracle(scene_cases: SceneCases, 
         for sa, sb in itertools.product(shapes_a, shapes_b):
             r = closed_form(sa.shape, stack[frame_a] @ sa.T_body_shape, sb.shape, stack[frame_b] @ sb.T_body_shape)
             got[:, j] = np.minimum(got[:, j], r.distance_m)
-    _assert_scene_close(scene_cases, pairs, got, d_ref, "closed_form")
+    _assert_scene_close(scene_cases, pairs, got, d_ref, engine)
 
 
 OVERSCALE = 1.25  # the min_distance cost's geometry scaling (paper §5): arm links only
@@ -918,11 +934,12 @@ def _assert_scene_close(cases: SceneCases, pairs: tuple, got: Array, ref: Array,
 
 
 def test_real_scene_base_to_link5_at_zero_joints_is_1_430_m() -> None:
-    """At q = 0 in scenario II, base_link-link5 is 1.430 m (python-fcl said 1.809 m), for the oracle and both
-    engines."""
+    """At q = 0 in scenario II, base_link-link5 is 1.430 m (python-fcl said 1.809 m), for the oracle and every
+    engine."""
     from planner.distance_closed_form import signed_distance as closed_form
     from planner.scenario import load_scenario
     from planner.scene import build_scene
+    from planner.verify_distance import shape_distance
     from planner.verify_kinematics import PinKinematics
 
     scenario = load_scenario(ROOT / "configs" / "scenarios" / "scenario_II.toml")
@@ -933,6 +950,7 @@ def test_real_scene_base_to_link5_at_zero_joints_is_1_430_m() -> None:
     T_base, T_link5 = frames["base_link"] @ base.T_body_shape, frames["link5"] @ link5.T_body_shape
     assert signed_distance(base.shape, T_base, link5.shape, T_link5).distance_m == pytest.approx(1.43, abs=1e-12)
     assert closed_form(base.shape, T_base, link5.shape, T_link5).distance_m[0] == pytest.approx(1.43, abs=1e-9)
+    assert shape_distance(base.shape, T_base, link5.shape, T_link5).distance_m[0] == pytest.approx(1.43, abs=1e-9)
     scene = build_scene(scenario)
     (pd,) = [p for p in scene.distances(frames) if p.pair == ("base_link", "link5")]
     assert pd.distance_m == pytest.approx(1.43, abs=1e-9)
