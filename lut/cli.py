@@ -84,18 +84,18 @@ def main() -> None:
 @user_errors
 def validate(scenario_path: str) -> None:
     """Load SCENARIO_PATH with its robot and target, check every field, print a summary."""
-    from planner.collision import default_pairs
     from planner.scenario import load_scenario
+    from planner.scene import scene_layout
 
     sc = load_scenario(scenario_path)
     robot = sc.robot
-    adjacent = list(zip(robot.body_names[:-1], robot.body_names[1:], strict=True))
-    pairs = default_pairs(robot.body_names, adjacent, ["target"])
+    layout = scene_layout(robot, sc.target)
     click.echo(f"scenario   {sc.name}  ({sc.source})")
     click.echo(f"robot      {robot.urdf_path}: {len(robot.body_names)} bodies, {robot.n_joints} joints, "
                f"{robot.total_mass_kg:.1f} kg, ee frame {robot.ee_frame!r}")
     click.echo(f"target     {sc.target.name}: {sc.target.mass_kg:.1f} kg, {len(sc.target.shapes)} shapes")
-    click.echo(f"collision  {len(pairs)} body pairs")
+    handle = "" if layout.gripper_handle is None else f"; {'-'.join(layout.gripper_handle)} may touch only at the grasp"
+    click.echo(f"collision  {len(layout.pairs)} body pairs{handle}")
     click.echo("ok")
 
 

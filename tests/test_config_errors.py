@@ -349,5 +349,5 @@ def test_bundled_scenarios_validate(scenario: str, tmp_path: Path) -> None:
     result = _run(root / scenario)
     assert result.returncode == 0, result.stderr
     assert result.stderr == ""
-    assert "29 body pairs" in result.stdout
+    assert "37 body pairs; link7-handle may touch only at the grasp" in result.stdout
     assert result.stdout.splitlines()[-1] == "ok"
