@@ -33,6 +33,7 @@ since it separates the touching cores), and for segments their common normal (or
 parallel segments), along which every pair's gap grows at rate 1. Conventions of
 :mod:`planner.distance_closed_form`: ``p_world_b - p_world_a = distance_m * normal_world``, translating B by
 ``+ε n`` increases the distance by ``ε``; poses are ``T_world_shape`` (n, 4, 4) or one 4×4, metres.
+
 Internally every vector is stored coordinate-first, ``(3, ..., n)`` with the poses on the last (contiguous)
 axis, so each step is one numpy operation over all poses and candidates.
 """
@@ -85,6 +86,8 @@ def shape_distance(shape_a: Shape, T_world_a: Array, shape_b: Shape, T_world_b: 
     Ta = np.asarray(T_world_a, dtype=float).reshape(-1, 4, 4)
     Tb = np.asarray(T_world_b, dtype=float).reshape(-1, 4, 4)
     Ta, Tb = np.broadcast_arrays(Ta, Tb)
+    if len(Ta) == 0:
+        return PairDistances(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
     Ta, Tb = np.ascontiguousarray(Ta.transpose(1, 2, 0)), np.ascontiguousarray(Tb.transpose(1, 2, 0))  # (4, 4, n)
     if isinstance(shape_a, Capsule) and isinstance(shape_b, Capsule):
         la, lb = _half_length(shape_a), _half_length(shape_b)
