@@ -175,8 +175,9 @@ def check_options(options: BuildOptions) -> None:
 
 
 def _existing_work(table_path: Path, jpath: Path, options: BuildOptions, mhash: str, config: GridConfig) -> bool:
-    """Decide what an existing journal or table means for this build; True when the table is complete and
-    ``--resume`` leaves it as it is. Raises :class:`LutgenError` where the build must not start."""
+    """Apply the overwrite and resume rules (README, workflow 1) to what is at ``table_path``: raise
+    :class:`LutgenError` where the build must not start, delete an interrupted journal under ``--force``,
+    and return True when the table is complete and ``--resume`` leaves it as it is."""
     status = journal_status(jpath)
     if status is JournalStatus.IN_USE:
         raise LutgenError(f"{jpath}: another build of {table_path} is running (its journal is locked); "

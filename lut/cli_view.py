@@ -77,7 +77,7 @@ def preview(plan_path: str, out_html: str, max_frames: int) -> None:
     from lut.plan_file import load_plan
 
     doc = load_plan(plan_path)  # before importing plotly and pinocchio: a bad path fails fast
-    check_outputs([plan_path], [Output("-o/--out", Path(out_html))])
+    check_outputs([plan_path], [Output("-o/--out", Path(out_html))], creates_folders=True)
     from lut.preview import write_preview
 
     try:

@@ -62,11 +62,13 @@ def _check_folder(out: Output) -> None:
         raise OutputPathError(f"{out.option} {out.path}: exists and is not writable")
 
 
-def check_outputs(inputs: Iterable[str | Path], outputs: Iterable[Output], *, tables_allowed: bool = False) -> None:
+def check_outputs(inputs: Iterable[str | Path], outputs: Iterable[Output], *, tables_allowed: bool = False,
+                  creates_folders: bool = False) -> None:
     """Raise :class:`OutputPathError` unless every output may be written.
 
-    Refused: an output that is one of ``inputs`` or another output, a missing or read-only folder, an
-    existing folder in its place, and (unless ``tables_allowed``) an existing look-up table or journal.
+    Refused: an output that is one of ``inputs`` or another output, a missing (unless the command
+    ``creates_folders``) or read-only folder, an existing folder in its place, and (unless
+    ``tables_allowed``) an existing look-up table or journal.
     """
     input_paths = [Path(p) for p in inputs]
     seen: list[Output] = []
@@ -78,7 +80,8 @@ def check_outputs(inputs: Iterable[str | Path], outputs: Iterable[Output], *, ta
         for other in seen:
             if _same_file(out.path, other.path):
                 raise OutputPathError(f"{out.option} {out.path}: is also the {other.option} output")
-        _check_folder(out)
+        if not creates_folders:
+            _check_folder(out)
         if not tables_allowed and holds_table(out.path):
             raise OutputPathError(f"{out.option} {out.path}: is a look-up table or build journal; "
                                   "refusing to overwrite it")

@@ -136,18 +136,15 @@ class Planner:
     def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
 
-        A cold plan raises :class:`OutOfReach` at once when its scan of meeting times reaches none. A cold plan
-        whose stabilization fails from the first grasp tries the grasps the approach reaches from
-        its next scanned guesses (other meeting times), giving each stabilization
-        :data:`STABILIZATION_BUDGET` iterations; when none succeeds, the first grasp's stabilization is solved
-        again without that budget, so the plan is never worse than from the first grasp alone. A warm plan keeps its
-        grasp (a table's neighbours stay in one family of solutions).
+        A cold plan whose scan of meeting times reaches none raises :class:`OutOfReach` at once. A cold plan
+        whose stabilization fails from the first grasp tries the grasps the approach reaches from its next
+        scanned guesses (other meeting times), giving each stabilization :data:`STABILIZATION_BUDGET`
+        iterations; when none succeeds, the first grasp's stabilization is solved again without that budget,
+        so the plan is never worse than from the first grasp alone. A warm plan keeps its grasp (a table's
+        neighbours stay in one family of solutions).
         """
         t_start = time.perf_counter()
-        # the approach keeps its scan for this plan's retries only: planning a state again costs what a new
-        # state costs (and a benchmark repeating one state measures that)
-        self.approach.forget_scan()
-        forget_last_scan()
+        self._forget_scans()
         warm = warm_start.as_warm_start() if isinstance(warm_start, GraspPlan) else warm_start
         if warm is None:
             self._raise_if_out_of_reach(state, t_start)
@@ -198,6 +195,12 @@ class Planner:
                               timings, notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
+
+    def _forget_scans(self) -> None:
+        """Scans are kept for one plan's retries only: planning a state again costs what a new state costs (and
+        a benchmark repeating one state measures that)."""
+        self.approach.forget_scan()
+        forget_last_scan()
 
     def _raise_if_out_of_reach(self, state: TargetState, t_start: float) -> None:
         """:class:`OutOfReach` when the scan of meeting times reaches none (the approach then starts from this
