@@ -75,6 +75,10 @@ def main() -> None:
     Workflows:
       lutgen validate SCENARIO.toml               check a scenario, its robot URDF and its target
       lutgen plan SCENARIO.toml --out plan.json   plan one grasp directly (no table)
+
+    \b
+    Exit codes: 0 done (plan/query: feasible), 1 bad input (one line "error: …"),
+    2 infeasible (plan/query), 64 malformed command line.
     """
     warnings.formatwarning = _one_line_warning
 
