@@ -3,8 +3,8 @@
 The NLPs enforce their constraints at k via points only. :func:`verify` re-checks a plan on its stored
 samples at a step ≤ :data:`MAX_STEP_S` (phase starts and ends always included) with tools the NLPs do
 not use: pinocchio for forward kinematics and centroidal momentum, the accurate torque-free target
-propagation (:class:`planner.target.TargetMotion`), closed-form signed distances
-(:mod:`planner.distance_closed_form`; the NLPs use coal), and 5-point finite differences (FD) of the
+propagation (:class:`planner.target.TargetMotion`), its own closed-form signed distances
+(:mod:`planner.verify_distance`, not the NLPs' engine), and 5-point finite differences (FD) of the
 stored poses for every rate (:mod:`planner.verify_kinematics`).
 A plan is *feasible* only if every check passes. Checks (``margin`` ≥ 0 means satisfied, SI units),
 in report order; the tolerances live in :mod:`planner.verify_checks`:

@@ -1,7 +1,8 @@
 """Verify's collision check: every pair at every verified sample, by verify's own distance engine.
 
-The distances come from :mod:`planner.distance_closed_form` (closed form, vectorised over all samples at
-once), never from the NLPs' coal scene, so one engine's error is caught by the other. Which bodies and pairs
+The distances come from :mod:`planner.verify_distance` (closed form, vectorised over all samples at once),
+verify's own engine, written apart from the NLPs' (:mod:`planner.distance_closed_form`) with other algorithms,
+so one engine's error is caught by the other. Which bodies and pairs
 exist is the scene's layout (:func:`planner.scene.scene_layout`), and which clearance each pair must keep
 when is the handle-contact rule (:mod:`planner.contact_rule`): both are the specification being checked.
 """
@@ -14,8 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.contact_rule import TRACKING, closed_backoff_m, required_clearance_m
-from planner.distance_closed_form import signed_distance
 from planner.scene import SceneLayout
+from planner.verify_distance import shape_distance
 
 Array = NDArray[np.float64]
 
@@ -45,7 +46,7 @@ def sweep_pairs(layout: SceneLayout, T_world_frame: dict[str, Array]) -> PairSwe
         for sa in bodies[a].shapes:
             Ta = T_world_frame[bodies[a].frame_name] @ sa.T_body_shape
             for sb in bodies[b].shapes:
-                r = signed_distance(sa.shape, Ta, sb.shape, T_world_frame[bodies[b].frame_name] @ sb.T_body_shape)
+                r = shape_distance(sa.shape, Ta, sb.shape, T_world_frame[bodies[b].frame_name] @ sb.T_body_shape)
                 better = r.distance_m < d[:, k]
                 d[better, k] = r.distance_m[better]
                 pa[better, k], pb[better, k] = r.p_world_a[better], r.p_world_b[better]
