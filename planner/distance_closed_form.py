@@ -111,7 +111,7 @@ def closest_segment_params(p: Array, u: Array, q: Array, v: Array) -> tuple[Arra
     a, e, b, c, f = _dot(u, u), _dot(v, v), _dot(u, v), _dot(u, r), _dot(v, r)
     tiny = 1e-300
     a_safe, e_safe = np.maximum(a, tiny), np.maximum(e, tiny)
-    denom = a * e - b * b  # ‖u × v‖²
+    denom = _dot(np.cross(u, v), np.cross(u, v))  # ‖u × v‖², not a·e − b²: that cancels for nearly parallel u, v
     s = np.where(denom > 1e-14 * a * e, np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1), 0.0)
     t = (b * s + f) / e_safe
     s = np.where(t < 0.0, np.clip(-c / a_safe, 0, 1), np.where(t > 1.0, np.clip((b - c) / a_safe, 0, 1), s))
