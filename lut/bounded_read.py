@@ -48,6 +48,8 @@ def probe_read(read: Callable[[], object], timeout_s: float) -> Probe:
     pid = os.fork()
     if pid == 0:  # the child: read, report, leave without running the parent's cleanup
         os.close(r)
+        # its answer goes through the pipe: libhdf5 diagnostics or a crash dump must not reach the user's terminal
+        os.dup2(os.open(os.devnull, os.O_WRONLY), 2)
         code = _EXIT_OK
         try:
             read()
