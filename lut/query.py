@@ -149,17 +149,21 @@ class TableQuery:
         plan = report = None
         if rec is not None:
             plan, report = self._simulate_and_verify(state, rec, latency)
-        remaining = budget_s - (time.perf_counter() - t_start) - FINISH_RESERVE_S
-        if (report is None or not report.feasible or refine) and remaining >= MIN_REFINE_S:
+        # warm from the table's answer first, then cold (with its retries over grasps) in what the budget has left
+        for warm, label in ((rec, "refined"), (None, "solved cold")) if rec is not None else ((None, "solved cold"),):
+            remaining = budget_s - (time.perf_counter() - t_start) - FINISH_RESERVE_S
+            if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
+                break
             t0 = time.perf_counter()
-            refined = self._refine(state, rec, remaining)
-            latency["refine_s"] = time.perf_counter() - t0
+            refined = self._refine(state, warm, remaining)
+            latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.get("status") in ("feasible", "infeasible") and has_parameters(refined):
                 new_plan, new_report = self._simulate_and_verify(state, refined, {})
                 if report is None or (new_report.feasible and (refine or not report.feasible)):
-                    plan, report, source = new_plan, new_report, "refined"
+                    plan, report, source = new_plan, new_report, label
             else:
                 self.refine_failure = str(refined.get("failure_reason", ""))
+            refine = False  # an asked-for refine is the warm one; the cold solve only stands in for a missing plan
         if plan is None or report is None:
             raise LutgenError("the table has no feasible point and there was no time left to solve "
                               f"(budget {budget_s:g} s)")
