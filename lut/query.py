@@ -165,8 +165,8 @@ class TableQuery:
                 self.refine_failure = str(refined.get("failure_reason", ""))
             refine = False  # an asked-for refine is the warm one; the cold solve only stands in for a missing plan
         if plan is None or report is None:
-            raise LutgenError("the table has no feasible point and there was no time left to solve "
-                              f"(budget {budget_s:g} s)")
+            why = self.refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
+            raise LutgenError(f"the table has no feasible point near this state and the solve gave no plan: {why}")
         latency["total_s"] = time.perf_counter() - t_start
         return QueryResult(plan, report, source, corners, latency)
 
