@@ -4,7 +4,8 @@ and the file's bytes as they were.
 Byte-level damage (truncation, zeroed ranges, random bytes) hits the HDF5 structure; dataset-level damage
 (missing, mistyped, misshapen, non-finite datasets and attributes) is made with h5py on a valid table. The
 table is the golden CI table (zeroed bytes 4000–12000 of it hung libhdf5 at 100 % CPU; what a given
-damage does depends on the file's layout, so the hang itself is also tested with a read that sleeps) or a table of the same grid written from the stand-in solver's records.
+damage does depends on the file's layout, so the hang itself is also tested with a read that sleeps) or a
+table of the same grid written from the stand-in solver's records.
 """
 
 from __future__ import annotations
