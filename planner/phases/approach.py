@@ -65,7 +65,7 @@ class ApproachSolution:
     iterations: int
     solve_time_s: float
     cost: float
-    min_distance_m: float  # at the via points, unscaled geometry
+    min_distance_m: float  # at the via points and tracking nodes, over the pairs held to the full margin (m)
     # index of the scanned initial guess (approach_guess.initial_guesses, best first) this solution descends
     # from; -1 when it started from a warm start
     start_guess: int = -1
@@ -306,6 +306,8 @@ class ApproachProblem:
         self._scan: tuple[tuple[bytes, bytes, int], list[ApproachGuess]] | None = None
         self.n_pairs = n_d
         self.n_dist = len(all_poses) * n_d
+        dist_bounds = self.lbg[self.n_before_dist: self.n_before_dist + self.n_dist]
+        self._held_to_margin = dist_bounds == dist_bounds.max()  # the gripper-handle pair closing in: not held
 
     def _blend_clearances(self, predict_step: ca.Function, att, om, R_ee0, p_ee0,  # noqa: ANN001
                           R_free) -> tuple[list, Array]:  # noqa: ANN001
@@ -512,5 +514,5 @@ class ApproachProblem:
             iterations=int(stats["iter_count"]),
             solve_time_s=elapsed,
             cost=float(sol["f"]),
-            min_distance_m=float(dists.min()),
+            min_distance_m=float(dists[self._held_to_margin].min()),
         )
