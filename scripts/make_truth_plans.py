@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 ROOT = Path(__file__).resolve().parents[1]
 SEED = 20261201
 MAJOR_AXIS = {"scenario_I": 1, "scenario_II": 2}  # body axis of the largest principal moment
-PLAN_TIMEOUT_S = 600
+PLAN_TIMEOUT_S = 300
 Array = np.ndarray
 
 
