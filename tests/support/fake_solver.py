@@ -15,7 +15,8 @@ import time
 import numpy as np
 
 
-def solve(scenario_path: str, point: int, attitude_wxyz, omega_body_rad_s, warm, warm_shift_s: float) -> dict:  # noqa: ANN001
+def solve(scenario_path: str, point: int, attitude_wxyz, omega_body_rad_s, warm, warm_shift_s: float,  # noqa: ANN001
+          max_wall_s: float | None = None) -> dict:
     if os.environ.get("LUTGEN_FAKE_RAISE") == str(point):
         raise RuntimeError(f"injected failure at point {point}")
     if os.environ.get("LUTGEN_FAKE_HANG") == str(point):
