@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planner.distance_closed_form import signed_distance
+from planner.distance_closed_form import ShapeRows, signed_distances
 from planner.geometry import Box, Capsule, PlacedShape
 
 Array = NDArray[np.float64]
@@ -143,6 +143,14 @@ class CollisionScene:
         self._pairs = self._checked_pairs(pairs)
         self._shape_pairs = [[_ShapePair(self.frame_of(a), sa, self.frame_of(b), sb)
                               for sa in placed[a] for sb in placed[b]] for a, b in self._pairs]
+        # (pair index, shape-pair index, shape pair) grouped by the kinds of the two shapes, in pair order
+        kinds: dict[tuple[bool, bool], list[tuple[int, int, _ShapePair]]] = {}
+        for k, shape_pairs in enumerate(self._shape_pairs):
+            for c, sp in enumerate(shape_pairs):
+                key = (isinstance(sp.placed_a.shape, Box), isinstance(sp.placed_b.shape, Box))
+                kinds.setdefault(key, []).append((k, c, sp))
+        self._by_kind = list(kinds.values())
+        self._rows: dict[int, list[tuple[ShapeRows, ShapeRows]]] = {}
 
     def _checked_pairs(self, pairs: Sequence[tuple[str, str]]) -> tuple[tuple[str, str], ...]:
         out = tuple((str(a), str(b)) for a, b in pairs)
@@ -204,22 +212,36 @@ class CollisionScene:
         return sweep.distance_m[0], sweep.p_world_a[0], sweep.p_world_b[0], sweep.normal_world[0]
 
     def sweep(self, T_world_frame: Mapping[str, Array]) -> PairSweep:
-        """Every pair at n pose sets at once: ``T_world_frame`` maps frame names to (n, 4, 4) stacks."""
+        """Every pair at n pose sets at once: ``T_world_frame`` maps frame names to (n, 4, 4) stacks.
+
+        The shape pairs of one kind (capsule–capsule, box–capsule, …) go through the engine in one call: its
+        cost is mostly per call, not per row.
+        """
         n = len(next(iter(T_world_frame.values())))
         m = len(self._pairs)
         d = np.full((n, m), np.inf)
         pa, pb, nn = np.zeros((n, m, 3)), np.zeros((n, m, 3)), np.zeros((n, m, 3))
         combo = np.zeros((n, m), dtype=np.int64)
-        for k, shape_pairs in enumerate(self._shape_pairs):
-            for c, sp in enumerate(shape_pairs):
-                r = signed_distance(sp.placed_a.shape, _pose(T_world_frame, sp.frame_a, sp.placed_a),
-                                    sp.placed_b.shape, _pose(T_world_frame, sp.frame_b, sp.placed_b))
-                better = r.distance_m < d[:, k]
-                d[better, k] = r.distance_m[better]
-                pa[better, k], pb[better, k], nn[better, k] = (r.p_world_a[better], r.p_world_b[better],
-                                                               r.normal_world[better])
+        for members, (shapes_a, shapes_b) in zip(self._by_kind, self._rows_for(n), strict=True):
+            Ta = np.concatenate([_pose(T_world_frame, sp.frame_a, sp.placed_a) for _, _, sp in members])
+            Tb = np.concatenate([_pose(T_world_frame, sp.frame_b, sp.placed_b) for _, _, sp in members])
+            r = signed_distances(shapes_a, Ta, shapes_b, Tb)
+            for g, (k, c, _) in enumerate(members):
+                rows = slice(g * n, (g + 1) * n)
+                better = r.distance_m[rows] < d[:, k]
+                d[better, k] = r.distance_m[rows][better]
+                pa[better, k], pb[better, k] = r.p_world_a[rows][better], r.p_world_b[rows][better]
+                nn[better, k] = r.normal_world[rows][better]
                 combo[better, k] = c
         return PairSweep(d, pa, pb, nn, combo)
+
+    def _rows_for(self, n: int) -> list[tuple[ShapeRows, ShapeRows]]:
+        """Per kind group, its shapes repeated for n poses (kept: the NLPs sweep the same n every call)."""
+        if n not in self._rows:
+            self._rows[n] = [(ShapeRows.of([sp.placed_a.shape for _, _, sp in members for _ in range(n)]),
+                              ShapeRows.of([sp.placed_b.shape for _, _, sp in members for _ in range(n)]))
+                             for members in self._by_kind]
+        return self._rows[n]
 
 
 def _scaled_shapes(body: CollisionBody, scale: float) -> list[PlacedShape]:

@@ -42,6 +42,21 @@ _VERTEX_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for s
 _EDGE_SIGNS = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=float)
 
 
+def _edge_pattern() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per edge of a unit box: the signs of its start point's coordinates and its axis (12, 3) each."""
+    starts, dirs = np.zeros((12, 3)), np.zeros((12, 3))
+    for axis in range(3):
+        j, k = [i for i in range(3) if i != axis]
+        for e, (sj, sk) in enumerate(_EDGE_SIGNS):
+            row = 4 * axis + e
+            starts[row, axis], starts[row, j], starts[row, k] = -1.0, sj, sk
+            dirs[row, axis] = 1.0
+    return starts, dirs
+
+
+_EDGE_START_SIGNS, _EDGE_DIRECTIONS = _edge_pattern()
+
+
 @dataclass(frozen=True)
 class SignedDistances:
     """Per pose: signed distance (m; < 0 minus the penetration depth), witness points and unit normal (world).
@@ -60,37 +75,54 @@ def signed_distance(shape_a: Shape, T_world_a: Array, shape_b: Shape, T_world_b:
     Ta = np.asarray(T_world_a, dtype=float).reshape(-1, 4, 4)
     Tb = np.asarray(T_world_b, dtype=float).reshape(-1, 4, 4)
     Ta, Tb = np.broadcast_arrays(Ta, Tb)
-    if isinstance(shape_a, Capsule) and isinstance(shape_b, Capsule):
-        d, ca, cb, n = segment_segment(*_segment(shape_a, Ta), *_segment(shape_b, Tb))
-    elif isinstance(shape_a, Box) and isinstance(shape_b, Capsule):
-        d, ca, cb, n = box_segment(_half(shape_a), Ta, *_segment(shape_b, Tb))
-    elif isinstance(shape_a, Capsule) and isinstance(shape_b, Box):
-        d, cb, ca, n = box_segment(_half(shape_b), Tb, *_segment(shape_a, Ta))
+    return signed_distances(ShapeRows.of([shape_a] * len(Ta)), Ta, ShapeRows.of([shape_b] * len(Tb)), Tb)
+
+
+@dataclass(frozen=True)
+class ShapeRows:
+    """Shapes of one kind, one per row: boxes by half sides ``half_m`` (n, 3), capsules by ``radius_m`` and
+    ``length_m`` (n,). Rows of different sizes go through the engine in one call."""
+
+    is_box: bool
+    half_m: Array
+    radius_m: Array
+    length_m: Array
+
+    @staticmethod
+    def of(shapes: list[Shape]) -> ShapeRows:
+        if all(isinstance(sh, Box) for sh in shapes):
+            half = np.array([sh.size_m for sh in shapes], dtype=float).reshape(-1, 3) * 0.5
+            return ShapeRows(True, half, np.zeros(len(shapes)), np.zeros(len(shapes)))
+        if all(isinstance(sh, Capsule) for sh in shapes):
+            r = np.array([sh.radius_m for sh in shapes], dtype=float)
+            return ShapeRows(False, np.zeros((len(shapes), 3)), r, np.array([sh.length_m for sh in shapes], float))
+        raise TypeError(f"unsupported or mixed shapes {sorted({type(sh).__name__ for sh in shapes})}")
+
+
+def signed_distances(a: ShapeRows, T_world_a: Array, b: ShapeRows, T_world_b: Array) -> SignedDistances:
+    """Row by row, the signed distance of shape ``a[i]`` posed by ``T_world_a[i]`` and ``b[i]`` by ``T_world_b[i]``."""
+    Ta, Tb = T_world_a, T_world_b
+    if not a.is_box and not b.is_box:
+        d, ca, cb, n = segment_segment(*_segment(a.length_m, Ta), *_segment(b.length_m, Tb))
+    elif a.is_box and not b.is_box:
+        d, ca, cb, n = box_segment(a.half_m, Ta, *_segment(b.length_m, Tb))
+    elif b.is_box and not a.is_box:
+        d, cb, ca, n = box_segment(b.half_m, Tb, *_segment(a.length_m, Ta))
         n = -n
-    elif isinstance(shape_a, Box) and isinstance(shape_b, Box):
-        d, ca, cb, n = box_box(_half(shape_a), Ta, _half(shape_b), Tb)
     else:
-        raise TypeError(f"unsupported shapes {type(shape_a).__name__}, {type(shape_b).__name__}")
-    ra, rb = _radius(shape_a), _radius(shape_b)
+        d, ca, cb, n = box_box(a.half_m, Ta, b.half_m, Tb)
+    ra, rb = a.radius_m, b.radius_m
     d = d - ra - rb
-    p_a = ca + ra * n
+    p_a = ca + ra[:, None] * n
     # B's witness from the identity: cb - rb n up to rounding, but exact to it where the normal comes from core
     # points a few nm apart (nearly touching cores), whose direction carries that rounding
     return SignedDistances(d, p_a, p_a + d[:, None] * n, n)
 
 
-def _radius(shape: Shape) -> float:
-    return float(shape.radius_m) if isinstance(shape, Capsule) else 0.0
-
-
-def _half(box: Box) -> Array:
-    return 0.5 * np.asarray(box.size_m, dtype=float)
-
-
-def _segment(capsule: Capsule, T: Array) -> tuple[Array, Array]:
-    """Start point and direction (world, m) of a capsule's core: from −L/2 to +L/2 along the shape's z."""
+def _segment(length_m: Array, T: Array) -> tuple[Array, Array]:
+    """Start points and direction vectors (world, m) of capsule cores: from −L/2 to +L/2 along the shapes' z."""
     axis = T[:, :3, 2]
-    return T[:, :3, 3] - 0.5 * capsule.length_m * axis, capsule.length_m * axis
+    return T[:, :3, 3] - 0.5 * length_m[:, None] * axis, length_m[:, None] * axis
 
 
 def _dot(a: Array, b: Array) -> Array:
@@ -164,23 +196,15 @@ def _least_aligned_axis(u: Array) -> Array:
 
 
 def point_box(x: Array, half: Array) -> Array:
-    """Closest point of the box ``|y_i| ≤ half_i`` to the points ``x`` (box frame, m)."""
-    return np.clip(x, -half, half)
+    """Closest points of the boxes ``|y_i| ≤ half_i`` (half (n, 3)) to the points ``x`` (n, ..., 3), box frames."""
+    h = half.reshape(len(half), *(1,) * (x.ndim - 2), 3)
+    return np.clip(x, -h, h)
 
 
 def _box_edges(half: Array) -> tuple[Array, Array]:
-    """The 12 edges of a box centred at 0 (its frame): start points (12, 3) and direction vectors (12, 3)."""
-    starts, dirs = [], []
-    for axis in range(3):
-        j, k = [i for i in range(3) if i != axis]
-        for sj, sk in _EDGE_SIGNS:
-            p = np.zeros(3)
-            p[axis], p[j], p[k] = -half[axis], sj * half[j], sk * half[k]
-            d = np.zeros(3)
-            d[axis] = 2.0 * half[axis]
-            starts.append(p)
-            dirs.append(d)
-    return np.array(starts), np.array(dirs)
+    """The 12 edges of boxes centred at 0 (their frames), half sides (n, 3): start points and direction vectors
+    (n, 12, 3)."""
+    return _EDGE_START_SIGNS[None] * half[:, None, :], _EDGE_DIRECTIONS[None] * (2.0 * half[:, None, :])
 
 
 def _to_frame(T: Array, x: Array) -> Array:
@@ -208,7 +232,7 @@ def box_segment(half: Array, T_box: Array, p: Array, u: Array) -> tuple[Array, A
     d = d_sep.copy()
     n = n_sep
     if np.any(inside):
-        depth, cb_in, cs_in, n_in = _box_segment_penetration(half, a[inside], du[inside])
+        depth, cb_in, cs_in, n_in = _box_segment_penetration(half[inside], a[inside], du[inside])
         d[inside], c_box[inside], c_seg[inside], n[inside] = -depth, cb_in, cs_in, n_in
     return d, _to_world(T_box, c_box), _to_world(T_box, c_seg), _to_world(T_box, n, direction=True)
 
@@ -218,9 +242,9 @@ def _box_segment_separated(half: Array, a: Array, du: Array) -> tuple[Array, Arr
     ends = np.stack([a, a + du], axis=1)  # (n, 2, 3)
     on_box_ends = point_box(ends, half)
     e0, ed = _box_edges(half)
-    s, t = closest_segment_params(a[:, None, :], du[:, None, :], e0[None], ed[None])
+    s, t = closest_segment_params(a[:, None, :], du[:, None, :], e0, ed)
     on_seg = a[:, None, :] + s[..., None] * du[:, None, :]
-    on_edge = e0[None] + t[..., None] * ed[None]
+    on_edge = e0 + t[..., None] * ed
     box_pts = np.concatenate([on_box_ends, on_edge], axis=1)  # (n, 14, 3)
     seg_pts = np.concatenate([ends, on_seg], axis=1)
     dist = np.linalg.norm(seg_pts - box_pts, axis=-1)
@@ -235,10 +259,10 @@ def _segment_meets_box(half: Array, a: Array, du: Array) -> Array:
     for i in range(3):
         moving = np.abs(du[:, i]) > 0.0
         step = np.where(moving, du[:, i], 1.0)
-        t1, t2 = (-half[i] - a[:, i]) / step, (half[i] - a[:, i]) / step
+        t1, t2 = (-half[:, i] - a[:, i]) / step, (half[:, i] - a[:, i]) / step
         lo = np.where(moving, np.maximum(lo, np.minimum(t1, t2)), lo)
         hi = np.where(moving, np.minimum(hi, np.maximum(t1, t2)), hi)
-        outside = ~moving & (np.abs(a[:, i]) > half[i])
+        outside = ~moving & (np.abs(a[:, i]) > half[:, i])
         hi = np.where(outside, -1.0, hi)
     return lo <= hi
 
@@ -250,7 +274,7 @@ def _box_segment_penetration(half: Array, a: Array, du: Array) -> tuple[Array, A
     norms = np.linalg.norm(axes, axis=-1)
     valid = norms > _PARALLEL_REL * np.maximum(np.linalg.norm(du, axis=-1, keepdims=True), 1.0)
     axes = axes / np.where(valid, norms, 1.0)[..., None]
-    radius = _dot(np.abs(axes), half)
+    radius = _dot(np.abs(axes), half[:, None, :])
     proj0, proj1 = _dot(axes, a[:, None, :]), _dot(axes, (a + du)[:, None, :])
     push_plus = radius - np.minimum(proj0, proj1)  # move the segment along +axis until it clears the box
     push_minus = np.maximum(proj0, proj1) + radius
@@ -278,7 +302,7 @@ def box_box(half_a: Array, T_a: Array, half_b: Array, T_b: Array) -> tuple[Array
         d[inside] = -depth[inside]
         # witnesses: a contact point of the pose separated by the depth (touching there), B's moved back
         shift = depth[inside, None] * n[inside]
-        _, ca[inside], cb_touch = _box_box_separated(half_a, half_b, R[inside], c[inside] + shift)
+        _, ca[inside], cb_touch = _box_box_separated(half_a[inside], half_b[inside], R[inside], c[inside] + shift)
         cb[inside] = cb_touch - shift
         nn[inside] = n[inside]
     return d, _to_world(T_a, ca), _to_world(T_a, cb), _to_world(T_a, nn, direction=True)
@@ -300,8 +324,8 @@ def _box_box_sat(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Arra
     """Smallest overlap over the 15 axes: ≥ 0 when the boxes meet (then it is the penetration depth), < 0 when
     some axis separates them; and that axis, oriented so that moving B along it separates them."""
     axes, valid = _box_box_axes(R)
-    r_a = _dot(np.abs(axes), half_a)
-    r_b = np.einsum("nkj,j->nk", np.abs(np.einsum("nki,nij->nkj", axes, R)), half_b)
+    r_a = _dot(np.abs(axes), half_a[:, None, :])
+    r_b = np.einsum("nkj,nj->nk", np.abs(np.einsum("nki,nij->nkj", axes, R)), half_b)
     centre = _dot(axes, c[:, None, :])
     push_plus = r_a + r_b - centre
     push_minus = r_a + r_b + centre
@@ -314,19 +338,19 @@ def _box_box_sat(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Arra
 
 def _box_box_separated(half_a: Array, half_b: Array, R: Array, c: Array) -> tuple[Array, Array, Array]:
     """Distance and closest points (A's frame) of disjoint boxes: vertices against boxes, edges against edges."""
-    vb = c[:, None, :] + np.einsum("nij,kj->nki", R, _VERTEX_SIGNS * half_b)  # B's vertices in A's frame
+    vb = c[:, None, :] + np.einsum("nij,nkj->nki", R, _VERTEX_SIGNS[None] * half_b[:, None, :])  # in A's frame
     on_a = point_box(vb, half_a)
-    va = _VERTEX_SIGNS * half_a
-    va_in_b = np.einsum("nji,nkj->nki", R, va[None] - c[:, None, :])
+    va = _VERTEX_SIGNS[None] * half_a[:, None, :]
+    va_in_b = np.einsum("nji,nkj->nki", R, va - c[:, None, :])
     on_b = c[:, None, :] + np.einsum("nij,nkj->nki", R, point_box(va_in_b, half_b))
     ea0, ead = _box_edges(half_a)
     eb0, ebd = _box_edges(half_b)
-    b0 = c[:, None, :] + np.einsum("nij,kj->nki", R, eb0)
-    bd = np.einsum("nij,kj->nki", R, ebd)
-    s, t = closest_segment_params(ea0[None, :, None, :], ead[None, :, None, :], b0[:, None, :, :], bd[:, None, :, :])
-    pa_edge = (ea0[None, :, None, :] + s[..., None] * ead[None, :, None, :]).reshape(len(R), 144, 3)
+    b0 = c[:, None, :] + np.einsum("nij,nkj->nki", R, eb0)
+    bd = np.einsum("nij,nkj->nki", R, ebd)
+    s, t = closest_segment_params(ea0[:, :, None, :], ead[:, :, None, :], b0[:, None, :, :], bd[:, None, :, :])
+    pa_edge = (ea0[:, :, None, :] + s[..., None] * ead[:, :, None, :]).reshape(len(R), 144, 3)
     pb_edge = (b0[:, None, :, :] + t[..., None] * bd[:, None, :, :]).reshape(len(R), 144, 3)
-    pa = np.concatenate([on_a, np.broadcast_to(va, (len(R), 8, 3)), pa_edge], axis=1)
+    pa = np.concatenate([on_a, va, pa_edge], axis=1)
     pb = np.concatenate([vb, on_b, pb_edge], axis=1)
     dist = np.linalg.norm(pb - pa, axis=-1)
     k = np.argmin(dist, axis=1)
