@@ -8,7 +8,8 @@ observation and shows the phase boundaries (``doc["phases"]``) as dotted lines:
 * ``grasp_wrench.png`` — force (N) and torque (N·m) the gripper exerts on the target during the
   stabilization, grasp-frame components, with the limits of ``metrics.limits`` (paper Fig. 3).
 * ``joints.png`` — every joint's position (deg) and velocity (deg/s) against the URDF limits.
-* ``collision_distance.png`` — smallest signed distance over all collision pairs (m) and the margin
+* ``collision_distance.png`` — smallest signed distance over the collision pairs held to the full margin (m; the
+  gripper–handle pair is not, from the start of tracking: README "Collision model") and the margin
   (``metrics.limits.collision_margin_m``), with the pair that realises it. Needs ``samples.min_distance_m``
   (and ``samples.closest_pair`` for the pair); a plan without them gets a figure that says so.
 * ``tracking.png`` — gripper vs grasp frame during tracking: distance (mm), relative velocity (mm/s, by
@@ -203,7 +204,7 @@ def collision_distance_figure(doc: dict[str, Any]) -> tuple[Figure, str]:
         ax, ax_pair = fig.subplots(2, 1, sharex=True, height_ratios=(2.2, 1))
     else:
         ax, ax_pair = fig.add_subplot(), None
-    ax.plot(t, d, color="tab:blue", label="min signed distance, all pairs")
+    ax.plot(t, d, color="tab:blue", label="min signed distance, pairs held to the margin")
     if margin is not None:
         ax.axhline(margin, **LIMIT_STYLE, label=f"margin {margin:g} m")
     k = int(np.argmin(d))
