@@ -370,7 +370,7 @@ def test_solved_plan_is_consistent_under_verification():
                  "join_velocity_tracking_stabilization", "end_velocity"):
         assert report.checks[name].passed, "\n".join(summary_lines(report))
     assert report.checks["momentum_chaser"].value < 1e-4 and report.checks["momentum_compound"].value < 1e-4
-    assert report.pair_count == 29
+    assert report.pair_count == 37
 
 
 def test_join_instants_stored_in_both_phases_verify_alike(builder, baseline):
