@@ -6,7 +6,7 @@ of the configs it hashes) with::
 
     rm -f tests/data/ci_golden.h5 && .venv/bin/lutgen build configs/grids/ci.toml --out tests/data/ci_golden.h5 -j 2
 
-The rebuild takes ~10 min on 2 cores, so it is marked slow and run by hand after a planner change
+The rebuild takes ~2 min on 2 cores, so it is marked slow and run by hand after a planner change
 (``./scripts/test -m slow tests/test_ci_table.py``).
 The query tests read the golden table and are fast.
 """
