@@ -1,7 +1,8 @@
-"""Exact signed distances of boxes and capsules in closed form, vectorised over poses (verify's engine).
+"""Exact signed distances of boxes and capsules in closed form, vectorised over poses (the NLPs' engine).
 
-:func:`planner.verify.verify` is a second opinion on the NLPs, whose distances come from ``coal``
-(:mod:`planner.collision`); this module shares no code with that path. Every shape is a *core* swept by
+The NLPs' collision constraints (:mod:`planner.collision`) come from here; :func:`planner.verify.verify`
+checks every plan with an engine of its own (:mod:`planner.verify_distance`), written apart with other
+algorithms, so that one engine's error is caught by the other. Every shape is a *core* swept by
 a ball: a box is its own core (radius 0), a capsule is its segment with its radius. The signed distance of
 two sphere-swept convex sets is that of their cores minus the radii, with the same normal, so only core
 distances are computed here:

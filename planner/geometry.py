@@ -2,7 +2,7 @@
 
 A shape is placed in its parent body's frame by ``T_body_shape`` (4×4 homogeneous, metres).
 A capsule is the segment from ``-length/2`` to ``+length/2`` along the shape frame's z axis,
-swept by a sphere of ``radius`` (coal's ``Capsule`` convention).
+swept by a sphere of ``radius``.
 """
 
 from __future__ import annotations

@@ -66,12 +66,12 @@ def scene_layout(robot: RobotModel, target: TargetConfig) -> SceneLayout:
 
 
 def build_collision_scene(layout: SceneLayout, scale: float = 1.0) -> CollisionScene:
-    """The coal scene of ``layout``; ``scale`` enlarges the arm links' shapes."""
+    """The NLPs' collision scene of ``layout``; ``scale`` enlarges the arm links' shapes."""
     return CollisionScene(layout.bodies, layout.pairs, scale=dict.fromkeys(layout.arm_bodies, scale))
 
 
 def build_scene(scenario: Scenario, scale: float = 1.0, gripper_handle: bool = False) -> CollisionScene:
-    """The coal scene of a scenario; the gripper–handle pair only when ``gripper_handle`` (approach, tracking)."""
+    """The NLPs' collision scene of a scenario; the gripper–handle pair only when ``gripper_handle`` (approach)."""
     layout = scene_layout(scenario.robot, scenario.target)
     return build_collision_scene(layout if gripper_handle else layout.without_gripper_handle(), scale)
 
