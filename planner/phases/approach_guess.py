@@ -351,16 +351,19 @@ def _scored(ctx: _Scan, tau: float, configs: list[Array]) -> tuple:
     node_times = [0.0, *(f * t2 for f in TRACKING_NODES)]
     speeds = [np.abs(configs[j + 1][:7] - configs[j][:7]).max() / (node_times[j + 1] - node_times[j])
               / robot.qd_max.max() for j in range(len(TRACKING_NODES))]
-    clearance = np.inf
     manip = np.inf
+    frames: dict[str, list[Array]] = {}
     for j, x in enumerate(configs):
         R_t, _ = ctx.motion.body_pose(tau + tf + node_times[j])
         T_target = np.eye(4)
         T_target[:3, :3] = R_t[0]
         T_target[:3, 3] = sc.target.p_world_com
         poses = world_poses(robot, ctx.fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]), T_target)
-        clearance = min(clearance, min(d.distance_m for d in ctx.scene.distances(poses)))
+        for name, T in poses.items():
+            frames.setdefault(name, []).append(T)
         manip = min(manip, manipulability(np.asarray(ik_jacobian(sc, x[:7]))))
+    # every configuration's pairs in one sweep: the engine's cost is per call
+    clearance = float(ctx.scene.sweep({name: np.array(Ts) for name, Ts in frames.items()}).distance_m.min())
     # the quintic approach path peaks at 15/8 of its mean rate: travel / t_f¹ · 15/8 ≤ the limit
     travel = float((np.abs(x_pre[:7] - sc.q_initial) / robot.qd_max).max()) * 15 / 8 / tf
     speed_excess = sum(max(s / m - 1.0, 0.0) for s, m in zip(speeds, TRACKING_SPEED_MARGIN, strict=True))
