@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from lut.plan_file import load_plan
+from lut.preview_geometry import chaser_body_poses, pose_matrices
 from planner.contact_rule import APPROACH, STABILIZATION, TRACKING
 from planner.scenario import load_scenario
 from planner.scene import TARGET_BODY, scene_layout
 from planner.verify_collision import required_clearances, sweep_pairs
-from planner.verify_kinematics import PinKinematics
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"
@@ -40,25 +40,23 @@ def _phase_index(t: np.ndarray, phases: dict[str, tuple[float, float]]) -> np.nd
                     np.where(t <= phases["tracking"][1] + 1e-9, TRACKING, STABILIZATION))
 
 
+def _homogeneous(T: np.ndarray) -> np.ndarray:
+    """(..., 3, 4) poses as (..., 4, 4)."""
+    out = np.zeros((*T.shape[:-2], 4, 4))
+    out[..., :3, :] = T
+    out[..., 3, 3] = 1.0
+    return out
+
+
 def _slack(doc: dict, scenario_path: Path) -> tuple[np.ndarray, list[str]]:
     """(n, m) distance minus required clearance at every stored sample, and the pair names."""
     sc = load_scenario(scenario_path)
     s = {k: np.asarray(v, dtype=float) for k, v in doc["samples"].items() if k not in ("closest_pair",)}
-    chaser = PinKinematics(sc.robot)
-    frames: dict[str, list[np.ndarray]] = {name: [] for name in sc.robot.body_names}
-    for q, p, wxyz in zip(s["q"], s["base_position"], s["base_wxyz"], strict=True):
-        chaser.forward(np.concatenate([p, wxyz]), q)
-        for name, T in chaser.body_poses().items():
-            frames[name].append(T)
-    T_target = np.tile(np.eye(4), (len(s["t"]), 1, 1))
-    T_target[:, :3, 3] = s["target_position"]
-    w, x, y, z = s["target_wxyz"].T
-    T_target[:, :3, :3] = np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
+    chaser = _homogeneous(chaser_body_poses(sc.robot, s["base_position"], s["base_wxyz"], s["q"]))
+    frames = {name: chaser[:, i] for i, name in enumerate(sc.robot.body_names)}
+    T_target = _homogeneous(pose_matrices(s["target_position"], s["target_wxyz"]))
     layout = scene_layout(sc.robot, sc.target)
-    sweep = sweep_pairs(layout, {name: np.array(Ts) for name, Ts in frames.items()} | {TARGET_BODY: T_target})
+    sweep = sweep_pairs(layout, frames | {TARGET_BODY: T_target})
     phases = {k: tuple(v) for k, v in doc["phases"].items()}
     required = required_clearances(layout, sc.limits.collision_margin_m, s["t"], _phase_index(s["t"], phases), phases,
                                    sc.approach.pregrasp_backoff_m)
