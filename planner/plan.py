@@ -18,9 +18,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.bspline import UniformCubicBSpline, approach_vertices, stabilization_vertices
-from planner.compound import compound_robot
-from planner.freefloating import FreeFloatingModel
+from planner.config.scenario import Scenario
+from planner.model.compound import compound_robot
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.rotation import axis_angle_to_matrix
+from planner.model.target import TargetMotion, TargetState
+from planner.nlp.bspline import UniformCubicBSpline, approach_vertices, stabilization_vertices
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import ReachScan, forget_last_scan, reach_scan, target_motion
 from planner.phases.stabilization import (
@@ -31,9 +34,7 @@ from planner.phases.stabilization import (
     stabilization_spline,
 )
 from planner.phases.tracking import TrackingController, TrackingResult
-from planner.rotation import axis_angle_to_matrix
-from planner.scenario import Scenario
-from planner.target import TargetMotion, TargetState
+from planner.plan_parameters import PlanParameters
 
 Array = NDArray[np.float64]
 
@@ -66,7 +67,7 @@ def approach_retry_budget(first_iterations: int) -> int:
     return max(APPROACH_RETRY_MIN, APPROACH_RETRY_FACTOR * first_iterations)
 
 
-class OutOfReach(Exception):  # noqa: N818 - an outcome, not an error
+class OutOfReach(Exception):
     """A cold plan found no meeting time in the start-delay window where the arm reaches the grasp: the state
     is infeasible, and there is no trajectory to verify. ``str()`` says why; ``elapsed_s`` is how long it took."""
 
@@ -74,14 +75,6 @@ class OutOfReach(Exception):  # noqa: N818 - an outcome, not an error
         self.scan = scan
         self.elapsed_s = elapsed_s
         super().__init__(scan.reason())
-
-
-@dataclass(frozen=True)
-class WarmStart:
-    """Decision parameters that seed (or, in :meth:`Planner.simulate`, define) a plan."""
-
-    approach: ApproachSolution
-    stabilization_params: Array | None = None
 
 
 @dataclass
@@ -109,8 +102,10 @@ class GraspPlan:
     def t_grasp(self) -> float:
         return self.phases["tracking"][1]
 
-    def as_warm_start(self) -> WarmStart:
-        return WarmStart(self.approach, self.stabilization.params)
+    @property
+    def parameters(self) -> PlanParameters:
+        """The decision parameters this plan is re-simulated from."""
+        return PlanParameters(self.approach.parameters, self.stabilization.params)
 
 
 class Planner:
@@ -133,7 +128,7 @@ class Planner:
             self._stabilization = StabilizationProblem(self.scenario)
         return self._stabilization
 
-    def plan(self, state: TargetState, warm_start: WarmStart | GraspPlan | None = None) -> GraspPlan:
+    def plan(self, state: TargetState, warm_start: PlanParameters | GraspPlan | None = None) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
 
         A cold plan whose scan of meeting times reaches none raises :class:`OutOfReach` at once. A cold plan
@@ -145,7 +140,7 @@ class Planner:
         """
         t_start = time.perf_counter()
         self._forget_scans()
-        warm = warm_start.as_warm_start() if isinstance(warm_start, GraspPlan) else warm_start
+        warm = warm_start.parameters if isinstance(warm_start, GraspPlan) else warm_start
         if warm is None:
             self._raise_if_out_of_reach(state, t_start)
         notes: list[str] = []
@@ -221,7 +216,7 @@ class Planner:
             scale = self.approach.tracking_speed_scale / ratio * 0.97
             notes.append(f"tracking joint rate {ratio:.3f}× the limit: approach re-solved with its tracking-rate "
                          f"bounds scaled by {scale:.3f}")
-            retry = self.approach.solve(state, app, tracking_speed_scale=scale)
+            retry = self.approach.solve(state, app.parameters, tracking_speed_scale=scale)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = replace_timing(app, retry)
@@ -231,7 +226,7 @@ class Planner:
         grasp, T_body_grasp_used = self._grasp_state(tr, motion)
         return GraspCandidate(self, app, approach_samples, tr, grasp, T_body_grasp_used)
 
-    def simulate(self, state: TargetState, warm: WarmStart) -> GraspPlan:
+    def simulate(self, state: TargetState, given: PlanParameters) -> GraspPlan:
         """The plan that given parameters produce for ``state``, without solving (table queries).
 
         The approach parameters are used as they are; the tracking IK runs from where they end; the
@@ -239,10 +234,10 @@ class Planner:
         """
         t_start = time.perf_counter()
         motion = self._motion(state)
-        app = warm.approach
+        app = ApproachSolution.given(given.approach)
         approach_samples, tr = self._approach_and_tracking(app, motion)
         grasp, T_body_grasp_used = self._grasp_state(tr, motion)
-        params = warm.stabilization_params
+        params = given.stabilization_params
         if params is None:
             params = self.stabilization_problem.initial_params(grasp)
         # given parameters need no NLP: a query that only simulates and verifies never builds one

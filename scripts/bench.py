@@ -94,7 +94,7 @@ def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> d
         t0 = time.perf_counter()
         try:
             result[name] = section(settings)
-        except Exception as exc:  # one broken section must not cost the others' numbers
+        except Exception as exc:  # noqa: BLE001 - one broken section must not cost the others' numbers
             traceback.print_exc()
             message = f"{type(exc).__name__}: {exc}".splitlines()[0]
             result[name] = {"error": message, "skipped": f"the section failed ({message})"}

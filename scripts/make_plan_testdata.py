@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lut.plan_file import check_plan
+from lut.output.plan_file import check_plan
 
 
 def thin(t: np.ndarray, step_s: float, boundaries: list[float]) -> np.ndarray:

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.config.scenario import load_scenario
+from planner.model.robot import fk_function
+from planner.model.rotation import quat_to_matrix
 from planner.phases.approach_guess import REACH_TOLERANCE, _PoseIK
-from planner.robot import fk_function
-from planner.rotation import quat_to_matrix
-from planner.scenario import load_scenario
 
 SCENARIO_I = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "scenario_I.toml"
 
@@ -38,7 +38,7 @@ def test_reach_bound_holds_for_pinocchio_fk_and_is_nearly_attained(robot):
     configurations; the bound is a sum of link lengths, so a stretched arm comes close to it."""
     import pinocchio as pin
 
-    from planner.robot import pin_configuration
+    from planner.model.robot import pin_configuration
 
     model, data = robot.pin_model, robot.pin_model.createData()
     fid = model.getFrameId(robot.ee_frame)

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 import planner.phases.approach as approach_module
+from planner.config.scenario import load_scenario
 from planner.phases.approach import ApproachProblem
-from planner.scenario import load_scenario
 
 SCENARIO_II = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "scenario_II.toml"
 

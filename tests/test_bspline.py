@@ -1,4 +1,4 @@
-"""Tests of planner.bspline: uniform cubic B-spline trajectories and the Eq. 23 / 24 parameter layouts."""
+"""Tests of planner.nlp.bspline: uniform cubic B-spline trajectories and the Eq. 23 / 24 parameter layouts."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import BSpline
 
-from planner.bspline import (
+from planner.nlp.bspline import (
     UniformCubicBSpline,
     approach_params_from_vertices,
     approach_vertices,

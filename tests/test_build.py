@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.build import BuildOptions, journal_path, run_build
-from lut.store import Table
+from lut.build.sweep import BuildOptions, journal_path, run_build
+from lut.table.store import Table
 
 ROOT = Path(__file__).resolve().parents[1]
 FAKE = "tests.support.fake_solver:solve"
@@ -118,14 +118,14 @@ def test_raising_and_hanging_points_are_recorded_failed(grid_file, tmp_path, mon
 
 BUILD_SCRIPT = """
 import sys
-from lut.build import BuildOptions, run_build
+from lut.build.sweep import BuildOptions, run_build
 run_build(sys.argv[1], sys.argv[2], BuildOptions(jobs=2, solver="{fake}", resume=True, progress=False))
 """
 
 
 def _journaled_points(path: Path) -> int:
     """Intact point records in a journal (its first frame is the header)."""
-    from lut.journal import MAGIC, read_frames
+    from lut.table.journal import MAGIC, read_frames
 
     if not path.exists():
         return 0

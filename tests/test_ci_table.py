@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.build import BuildOptions, run_build
-from lut.query import TableQuery
-from lut.records import PARAMETER_KEYS, warm_start_from_record
-from lut.store import Table
+from lut.build.sweep import BuildOptions, run_build
+from lut.query.table_query import TableQuery
+from lut.table.records import PARAMETER_KEYS, parameters_from_record
+from lut.table.store import Table
+from planner.phases.approach import ApproachSolution
 
 ROOT = Path(__file__).resolve().parents[1]
 CI_GRID = ROOT / "configs" / "grids" / "ci.toml"
@@ -190,7 +191,7 @@ def test_tracking_rate_cap_scales_the_rates_and_the_feedback_still_meets_the_gra
 
     tq = table_query
     motion = tq.planner._motion(tq.grid.state(0))
-    approach = warm_start_from_record(tq.records[0]).approach
+    approach = ApproachSolution.given(parameters_from_record(tq.records[0]).approach)
     free = tq.planner._approach_and_tracking(approach, motion)[1]
     cap = 0.9 * min(free.peak_rate_demand, tracking.RATE_CAP_FRACTION)
     monkeypatch.setattr(tracking, "RATE_CAP_FRACTION", cap)

@@ -1,4 +1,4 @@
-"""Tests of planner.collision against references independent of fcl.
+"""Tests of planner.collision.scene_distances against references independent of fcl.
 
 References: hand-computed distances; the analytic segment–segment formula; for boxes, the separated
 distance as a bounded linear least-squares problem (scipy ``lsq_linear``: closest points of two boxes /
@@ -17,15 +17,15 @@ from numpy.typing import NDArray
 from scipy.optimize import lsq_linear
 from scipy.spatial.transform import Rotation
 
-from planner.collision import (
+from planner.collision.scene_distances import (
     CollisionBody,
     CollisionScene,
     PairDistance,
     default_pairs,
     distance_gradient,
 )
-from planner.geometry import Box, Capsule, PlacedShape, make_transform
-from planner.rotation import axis_angle_to_matrix, skew
+from planner.model.rotation import axis_angle_to_matrix, skew
+from planner.model.shapes import Box, Capsule, PlacedShape, make_transform
 
 Array = NDArray[np.float64]
 I3 = np.eye(3)

@@ -1,4 +1,4 @@
-"""The NLP's collision constraint (planner.collision_callback): values, witness-point Jacobian, sweep cache."""
+"""The NLP's collision constraint (planner.collision.callback): values, witness-point Jacobian, sweep cache."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from planner.collision_callback import SceneDistanceCallback, pose_vector
-from planner.robot import fk_function
-from planner.rotation import quat_to_matrix
-from planner.scenario import load_scenario
-from planner.scene import TARGET_BODY, build_scene, world_poses
+from planner.collision.callback import SceneDistanceCallback, pose_vector
+from planner.collision.layout import TARGET_BODY, build_scene, world_poses
+from planner.config.scenario import load_scenario
+from planner.model.robot import fk_function
+from planner.model.rotation import quat_to_matrix
 
 SCENARIO_I = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "scenario_I.toml"
 

@@ -1,4 +1,4 @@
-"""Compiled CasADi Functions (planner.compiled): same numbers as the interpreted Function, compiled once per
+"""Compiled CasADi Functions (planner.nlp.compiled): same numbers as the interpreted Function, compiled once per
 machine and source, shared safely between processes, and a quiet fallback when compiling is impossible.
 
 A tiny Function compiles in well under a second, so these tests compile for real.
@@ -16,8 +16,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from planner import compiled as compiled_module
-from planner.compiled import compiled
+from planner.nlp import compiled as compiled_module
+from planner.nlp.compiled import compiled
 
 
 def _function(name: str = "toy", scale: float = 1.0) -> ca.Function:
@@ -119,7 +119,7 @@ def test_processes_racing_for_one_library_compile_it_once(cache, tmp_path):
         import sys
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_compiled import _function
-        from planner.compiled import compiled
+        from planner.nlp.compiled import compiled
         g = compiled(_function())
         assert g.is_a("External"), "fell back"
         print(float(g([0.1, 0.2, 0.3], [0.4, 0.5])[0][0]))

@@ -1,4 +1,4 @@
-"""The compound chaser + target with its grasp geometry as parameters (planner.compound), against pinocchio's
+"""The compound chaser + target with its grasp geometry as parameters (planner.model.compound), against pinocchio's
 compound model (``RobotModel.with_payload``) at several grasps: one symbolic model must serve them all."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner.compound import GEOMETRY_SIZE, GraspGeometry, compound_robot, grasp_geometry
-from planner.freefloating import FreeFloatingModel, base_twist_sym, momentum_map, rk4_step_function
-from planner.robot import pin_configuration
-from planner.rotation import axis_angle_to_matrix, quat_to_matrix
-from planner.scenario import load_scenario
+from planner.config.scenario import load_scenario
+from planner.model.compound import GEOMETRY_SIZE, GraspGeometry, compound_robot, grasp_geometry
+from planner.model.freefloating import FreeFloatingModel, base_twist_sym, momentum_map, rk4_step_function
+from planner.model.robot import pin_configuration
+from planner.model.rotation import axis_angle_to_matrix, quat_to_matrix
 
 ROOT = Path(__file__).resolve().parents[1]
 

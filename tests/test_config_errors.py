@@ -296,7 +296,7 @@ CASES = [
     Case("target-not-toml", write(TARGET_II, "mass_kg = = 3\n"), "scenario_II_target.toml", None, "TOML", SCEN_II),
     Case("target-missing", remove(TARGET_I), "scenario_I.toml", "target", "not found"),
     Case("scenario-missing", remove(SCEN_I), "scenario_I.toml", None, "not found"),
-    # sanity limits (planner.config_limits): values that would cost hours or gigabytes before an answer
+    # sanity limits (planner.config.limits): values that would cost hours or gigabytes before an answer
     Case("limit-stabilization-duration", set_key(SCEN_I, "phases", "stabilization_s", "1e9"),
          "scenario_I.toml", "phases.stabilization_s", "sanity limit"),
     Case("limit-via-points", set_key(SCEN_I, "approach", "via_points", "100000000"),

@@ -9,14 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner.contact_rule import APPROACH, STABILIZATION, TRACKING, closed_backoff_m, required_clearance_m
-from planner.phases import constraint_backoff
+from planner.collision.contact_rule import APPROACH, STABILIZATION, TRACKING, closed_backoff_m, required_clearance_m
+from planner.collision.layout import HANDLE_BODY, TARGET_BODY, build_scene, scene_layout
+from planner.config.scenario import load_scenario
+from planner.nlp import constraint_backoff
 from planner.phases.approach import BLEND_CHECK_NODES, ApproachProblem
 from planner.phases.tracking_profile import TRACKING_NODES
-from planner.scenario import load_scenario
-from planner.scene import HANDLE_BODY, TARGET_BODY, build_scene, scene_layout
-from planner.verify import verify
-from planner.verify_collision import required_clearances
+from planner.verify.collision import required_clearances
+from planner.verify.verifier import verify
 from tests.test_verify import T0, T_APP, Builder
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"

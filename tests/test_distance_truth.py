@@ -23,7 +23,7 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from planner.geometry import Box, Capsule, PlacedShape
+from planner.model.shapes import Box, Capsule, PlacedShape
 from tests.support.distance_oracle import (
     Core,
     OracleDistance,
@@ -316,7 +316,7 @@ _PLACEMENT_B = poses(Rotation.from_rotvec([0.3, -0.2, 0.9]).as_matrix()[None], n
 
 def run_collision_scene(cs: CaseSet) -> EngineResult:
     """The NLP engine: one CollisionScene with a body pair per case, all pairs in one sweep."""
-    from planner.collision import CollisionBody, CollisionScene
+    from planner.collision.scene_distances import CollisionBody, CollisionScene
 
     T_bs_a = _PLACEMENT_A if cs.index % 2 else np.eye(4)
     T_bs_b = _PLACEMENT_B if cs.index % 2 else np.eye(4)
@@ -333,7 +333,7 @@ def run_collision_scene(cs: CaseSet) -> EngineResult:
 
 def run_closed_form(cs: CaseSet) -> EngineResult:
     """verify's engine: one vectorised call per case set."""
-    from planner.distance_closed_form import signed_distance as closed_form
+    from planner.collision.closed_form import signed_distance as closed_form
 
     r = closed_form(cs.shape_a, cs.T_a, cs.shape_b, cs.T_b)
     return EngineResult(np.asarray(r.distance_m, float), np.asarray(r.p_world_a, float),
@@ -341,8 +341,8 @@ def run_closed_form(cs: CaseSet) -> EngineResult:
 
 
 def run_verify_engine(cs: CaseSet) -> EngineResult:
-    """verify's own engine (:mod:`planner.verify_distance`, no code shared with the others): one vectorised call."""
-    from planner.verify_distance import shape_distance
+    """verify's own engine (:mod:`planner.verify.distance`, no code shared with the others): one vectorised call."""
+    from planner.verify.distance import shape_distance
 
     r = shape_distance(cs.shape_a, cs.T_a, cs.shape_b, cs.T_b)
     return EngineResult(np.asarray(r.distance_m, float), np.asarray(r.p_world_a, float),
@@ -798,7 +798,7 @@ TARGET_BODY, HANDLE_BODY = "target", "handle"
 class SceneCases:
     """Joint configurations and target poses of one scenario, with each body's world pose per case."""
 
-    scenario: object  # planner.scenario.Scenario
+    scenario: object  # planner.config.scenario.Scenario
     q: Array  # (n, 7) rad
     frames: list[dict[str, Array]]  # per case: frame name → 4×4 world pose (chaser bodies and the target)
 
@@ -836,8 +836,8 @@ def target_poses(scenario: object) -> list[Array]:
 @pytest.fixture(scope="module", params=SCENARIOS)
 def scene_cases(request: pytest.FixtureRequest) -> SceneCases:
     """Body poses from pinocchio (verify's kinematics) on the lattice, for each of three target poses."""
-    from planner.scenario import load_scenario
-    from planner.verify_kinematics import PinKinematics
+    from planner.config.scenario import load_scenario
+    from planner.verify.kinematics import PinKinematics
 
     scenario = load_scenario(ROOT / "configs" / "scenarios" / f"{request.param}.toml")
     kin = PinKinematics(scenario.robot)
@@ -862,7 +862,7 @@ def oracle_pair_distance(bodies: dict, frames: dict[str, Array], a: str, b: str)
 @pytest.fixture(scope="module")
 def scene_oracle(scene_cases: SceneCases) -> tuple[tuple[tuple[str, str], ...], Array]:
     """The scene's pairs (with the gripper-handle pair) and the oracle's distance of each, per case (n, m)."""
-    from planner.scene import build_scene
+    from planner.collision.layout import build_scene
 
     pairs = build_scene(scene_cases.scenario, gripper_handle=True).pairs
     bodies = scene_cases.body_shapes()
@@ -872,7 +872,7 @@ def scene_oracle(scene_cases: SceneCases) -> tuple[tuple[tuple[str, str], ...], 
 
 def test_real_scene_pairs_cover_every_chaser_body_against_target_and_handle(scene_cases: SceneCases) -> None:
     """The scene with the gripper-handle pair checks every chaser body against the target and the handle."""
-    from planner.scene import build_scene
+    from planner.collision.layout import build_scene
 
     pairs = set(build_scene(scene_cases.scenario, gripper_handle=True).pairs)
     chaser = scene_cases.scenario.robot.body_names
@@ -883,7 +883,7 @@ def test_real_scene_pairs_cover_every_chaser_body_against_target_and_handle(scen
 def test_real_scene_collision_scene_distances_equal_oracle(scene_cases: SceneCases, scene_oracle: tuple) -> None:
     """The NLP scene (coal) gives every pair's exact distance (min over shape pairs) to 1e-6 m on the 90°
     lattice, at three target poses."""
-    from planner.scene import build_scene
+    from planner.collision.layout import build_scene
 
     pairs, d_ref = scene_oracle
     scene = build_scene(scene_cases.scenario, gripper_handle=True)
@@ -896,7 +896,7 @@ def test_real_scene_collision_scene_witnesses_lie_on_the_reported_shapes(scene_c
                                                                         request: pytest.FixtureRequest) -> None:
     """In the real scene each pair's witness points lie on the surfaces of the shapes it names (1e-6 m), with
     ``p_b - p_a = d n`` (1e-9 m) and a unit normal."""
-    from planner.scene import build_scene
+    from planner.collision.layout import build_scene
 
     if ("real_scene_witness", scene_cases.scenario.name) in KNOWN_DEFECTS:
         request.applymarker(pytest.mark.xfail(strict=True, reason=KNOWN_DEFECTS[("real_scene_witness",
@@ -923,10 +923,10 @@ def test_real_scene_collision_scene_witnesses_lie_on_the_reported_shapes(scene_c
 @pytest.mark.parametrize("engine", ["closed_form", "verify_engine"])
 def test_real_scene_closed_form_distances_equal_oracle(engine: str, scene_cases: SceneCases,
                                                        scene_oracle: tuple) -> None:
-    """The vectorised closed forms (:mod:`planner.distance_closed_form`, verify's :mod:`planner.verify_distance`)
+    """The vectorised closed forms (:mod:`planner.collision.closed_form`, verify's :mod:`planner.verify.distance`)
     give every pair's exact distance (min over shape pairs) to 1e-6 m on the lattice."""
-    from planner.distance_closed_form import signed_distance as closed_form_distance
-    from planner.verify_distance import shape_distance
+    from planner.collision.closed_form import signed_distance as closed_form_distance
+    from planner.verify.distance import shape_distance
 
     closed_form = closed_form_distance if engine == "closed_form" else shape_distance
     pairs, d_ref = scene_oracle
@@ -947,7 +947,7 @@ OVERSCALE = 1.25  # the min_distance cost's geometry scaling (paper §5): arm li
 def test_real_scene_overscaled_arm_distances_equal_oracle(scene_cases: SceneCases) -> None:
     """With the arm links' shapes scaled by 1.25 (sizes, not positions; base and target unscaled), the NLP scene
     gives the oracle's distance of the scaled shapes to 1e-6 m."""
-    from planner.scene import build_scene
+    from planner.collision.layout import build_scene
 
     scene = build_scene(scene_cases.scenario, scale=OVERSCALE, gripper_handle=True)
     arm = set(scene_cases.scenario.robot.body_names[1:])
@@ -972,11 +972,11 @@ def _assert_scene_close(cases: SceneCases, pairs: tuple, got: Array, ref: Array,
 def test_real_scene_base_to_link5_at_zero_joints_is_1_430_m() -> None:
     """At q = 0 in scenario II, base_link-link5 is 1.430 m (python-fcl said 1.809 m), for the oracle and every
     engine."""
-    from planner.distance_closed_form import signed_distance as closed_form
-    from planner.scenario import load_scenario
-    from planner.scene import build_scene
-    from planner.verify_distance import shape_distance
-    from planner.verify_kinematics import PinKinematics
+    from planner.collision.closed_form import signed_distance as closed_form
+    from planner.collision.layout import build_scene
+    from planner.config.scenario import load_scenario
+    from planner.verify.distance import shape_distance
+    from planner.verify.kinematics import PinKinematics
 
     scenario = load_scenario(ROOT / "configs" / "scenarios" / "scenario_II.toml")
     kin = PinKinematics(scenario.robot)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from planner.phases.feasibility_stop import FeasibilityStop
+from planner.nlp.feasibility_stop import FeasibilityStop
 
 
 def _solve(stop: FeasibilityStop | None, x0: list[float]):

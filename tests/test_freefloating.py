@@ -6,8 +6,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner.robot import pin_configuration
-from planner.rotation import quat_to_matrix
+from planner.model.robot import pin_configuration
+from planner.model.rotation import quat_to_matrix
 
 
 def _state(robot, rng):

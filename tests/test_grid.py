@@ -1,4 +1,4 @@
-"""The look-up table grid (lut/grid.py): configs, state ↔ coordinates, flat-spin symmetry, cells, continuation."""
+"""The look-up table grid (lut/table/grid.py): configs, state ↔ coordinates, flat-spin symmetry, cells, continuation."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.grid import Axis, Grid, GridConfig, load_grid, load_grid_text, phase_time_shift_s
+from lut.table.grid import Axis, Grid, GridConfig, load_grid, load_grid_text, phase_time_shift_s
+from planner.config.scenario import load_scenario
 from planner.errors import ConfigError, TargetStateError
-from planner.rotation import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rpy_to_matrix
-from planner.scenario import load_scenario
-from planner.target import TargetState, propagate
+from planner.model.rotation import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rpy_to_matrix
+from planner.model.target import TargetState, propagate
 
 ROOT = Path(__file__).resolve().parents[1]
 GRIDS = ROOT / "configs" / "grids"

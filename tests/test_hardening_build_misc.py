@@ -51,7 +51,7 @@ def _alive(pids: set[int]) -> set[int]:
 
 def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
     script = textwrap.dedent(f"""
-        from lut.build import BuildOptions, run_build
+        from lut.build.sweep import BuildOptions, run_build
         run_build({str(ROOT / "configs/grids/ci.toml")!r}, {str(tmp_path / "t.h5")!r},
                   BuildOptions(jobs=2, solver="tests.support.fake_solver:solve", progress=False))
     """)
@@ -62,7 +62,7 @@ def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
         helpers: set[int] = set()
         while time.monotonic() < deadline:  # the loky workers and, under them, the point processes
             helpers = _descendants(build.pid)
-            if sum("lut.point_worker" in Path(f"/proc/{p}/cmdline").read_text(errors="replace")
+            if sum("lut.build.point_worker" in Path(f"/proc/{p}/cmdline").read_text(errors="replace")
                    for p in helpers if Path(f"/proc/{p}").exists()) >= 1:
                 break
             time.sleep(0.2)
@@ -82,15 +82,15 @@ def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
 
 
 def test_a_refine_timeout_names_the_query_budget(tmp_path, monkeypatch):
-    import lut.query
-    from lut.query import TableQuery
+    import lut.query.table_query
+    from lut.query.table_query import TableQuery
     from tests.support.cli import write_fake_table
 
     table = tmp_path / "t.h5"
     write_fake_table(table)
     monkeypatch.setenv("PYTHONPATH", str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     monkeypatch.setenv("LUTGEN_FAKE_HANG", "-1")  # the refine solves "point" -1
-    monkeypatch.setattr(lut.query, "DEFAULT_SOLVER", "tests.support.fake_solver:solve")
+    monkeypatch.setattr(lut.query.table_query, "DEFAULT_SOLVER", "tests.support.fake_solver:solve")
     tq = TableQuery(table)
     rec = tq._refine(tq.grid.state(0), None, budget_s=1.0)
     assert rec["status"] == "failed"

@@ -1,4 +1,4 @@
-"""A broken compiled-Function cache is rebuilt, not interpreted forever (planner.compiled)."""
+"""A broken compiled-Function cache is rebuilt, not interpreted forever (planner.nlp.compiled)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from planner import compiled as compiled_module
-from planner.compiled import compiled
+from planner.nlp import compiled as compiled_module
+from planner.nlp.compiled import compiled
 
 
 def _function(scale: float = 1.0) -> ca.Function:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.export import csv_header, plan_document, write_json
+from lut.output.export import csv_header, plan_document, write_json
 from planner.errors import LutgenError
 from tests.support.cli import ROOT, lutgen, write_golden_for_current_model
 
@@ -28,8 +28,8 @@ def table(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def golden_plan(table):
     """A plan and its report from the golden table's plans (interpolated, re-simulated, verified; no solve)."""
-    from lut.query import TableQuery
-    from planner.target import TargetState
+    from lut.query.table_query import TableQuery
+    from planner.model.target import TargetState
 
     tq = TableQuery(table)
     result = tq.query(TargetState(np.array([1.0, 0, 0, 0]), np.radians([0, 0, 3.75])), budget_s=1.0)
@@ -68,7 +68,7 @@ def test_an_unwritable_plan_path_is_one_error_line_and_no_temp_file(golden_plan,
 
 
 def test_portable_path_is_never_absolute(tmp_path, monkeypatch):
-    from lut.export import portable_path
+    from lut.output.export import portable_path
 
     monkeypatch.chdir(tmp_path)
     given = ROOT / "configs" / "scenarios" / ".." / "robots" / "chaser7.urdf"

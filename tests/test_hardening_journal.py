@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from lut.build import BuildOptions, journal_path, run_build
-from lut.journal import Journal, JournalStatus, journal_status
+from lut.build.sweep import BuildOptions, journal_path, run_build
+from lut.table.journal import Journal, JournalStatus, journal_status
 from tests.support.cli import CI_GRID, ROOT, assert_one_line_error, lutgen_in_process, write_fake_table
 
 HEADER = {"model_hash": "abc", "grid_text": "x"}
@@ -78,12 +78,12 @@ def test_option_errors_leave_no_journal_behind(tmp_path, args, words):
 
 
 def test_a_build_that_fails_before_its_first_record_leaves_no_journal(tmp_path, monkeypatch):
-    import lut.build
+    import lut.build.sweep
 
     def no_workers(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
         raise OSError("no workers today")
 
-    monkeypatch.setattr(lut.build, "_solve_layers", no_workers)
+    monkeypatch.setattr(lut.build.sweep, "_solve_layers", no_workers)
     with pytest.raises(OSError):
         run_build(CI_GRID, tmp_path / "t.h5", BuildOptions(progress=False))
     assert sorted(os.listdir(tmp_path)) == []

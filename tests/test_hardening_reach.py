@@ -8,12 +8,12 @@ import time
 import numpy as np
 import pytest
 
-from lut.point_worker import solve_point
-from lut.records import PARAMETER_KEYS
-from planner.bspline import UniformCubicBSpline
+from lut.build.point_worker import solve_point
+from lut.table.records import PARAMETER_KEYS
+from planner.config.scenario import load_scenario
+from planner.model.target import TargetState
+from planner.nlp.bspline import UniformCubicBSpline
 from planner.phases.approach_guess import MeetingOutcome, forget_last_scan, reach_scan
-from planner.scenario import load_scenario
-from planner.target import TargetState
 from tests.support.cli import ROOT, lutgen
 
 SCENARIO_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"

@@ -20,9 +20,9 @@ import h5py
 import numpy as np
 import pytest
 
-from lut.query import parameter_shapes
-from lut.store import Table
-from planner.scenario import load_scenario
+from lut.query.table_query import parameter_shapes
+from lut.table.store import Table
+from planner.config.scenario import load_scenario
 from tests.support.cli import ON_GRID_STATE, ROOT, assert_one_line_error, lutgen, lutgen_in_process, write_fake_table
 
 GOLDEN = ROOT / "tests" / "data" / "ci_golden.h5"
@@ -170,7 +170,7 @@ def test_a_read_that_hangs_or_crashes_is_ended_by_the_probe():
     import os
     import signal
 
-    from lut.bounded_read import ProbeOutcome, probe_read
+    from lut.table.bounded_read import ProbeOutcome, probe_read
 
     t0 = time.perf_counter()
     assert probe_read(lambda: time.sleep(3600), timeout_s=1.0).outcome is ProbeOutcome.TIMED_OUT

@@ -1,7 +1,7 @@
 """IPOPT's BLAS runs one thread, so a plan does not depend on the machine's core count.
 
 Two threads rounded scenario II's approach 4e-15 differently and its stabilization then failed (see
-planner.phases.ipopt); the pin only helps if it reaches the library IPOPT actually calls.
+planner.nlp.ipopt); the pin only helps if it reaches the library IPOPT actually calls.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from planner.phases.ipopt import ipopt_options, ipopt_solver
-from planner.scenario import SolverSettings
+from planner.config.scenario import SolverSettings
+from planner.nlp.ipopt import ipopt_options, ipopt_solver
 
 
 def _loaded_openblas_paths() -> set[str]:

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import planner.phases.approach as approach_module
+from planner.config.scenario import load_scenario
 from planner.phases.approach_guess import initial_guesses
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
-from planner.scenario import load_scenario
 
 SCENARIO_II = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "scenario_II.toml"
 

@@ -17,11 +17,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from planner.config.scenario import load_scenario
+from planner.model.robot import load_robot, pin_configuration
+from planner.model.rotation import quat_to_matrix
 from planner.plan import Planner
-from planner.robot import load_robot, pin_configuration
-from planner.rotation import quat_to_matrix
-from planner.scenario import load_scenario
-from planner.verify import verify
+from planner.verify.verifier import verify
 
 pytestmark = pytest.mark.slow
 
@@ -136,7 +136,7 @@ def test_scenario_II_grasp_is_impact_free_and_joint_motion_is_continuous(scenari
 def test_exported_json_alone_satisfies_momentum_and_kinematics(scenario_II, tmp_path):
     """From the JSON only: pinocchio momentum (base twist by finite differences) ~0 before the grasp,
     constant after; ee_position equals pinocchio FK of ee_frame."""
-    from lut.export import plan_document, write_json
+    from lut.output.export import plan_document, write_json
 
     plan, report = scenario_II
     path = tmp_path / "plan.json"

@@ -1,4 +1,4 @@
-"""Figures of a plan (``lut.plots``), coverage maps of a table (``lut.coverage_plots``), ``lutgen plot``.
+"""Figures of a plan (``lut.output.plots``), coverage maps of a table (``lut.output.coverage_plots``), ``lutgen plot``.
 
 The plans are real ones of both paper scenarios (``tests/data/plan_*.json.gz``: ``lutgen plan`` output
 thinned to 0.1 s by ``scripts/make_plan_testdata.py``, every field kept). A figure passes when its PNG
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from lut.plan_file import PlanFileError, check_plan, load_plan
-from lut.plots import TITLES, write_plots
+from lut.output.plan_file import PlanFileError, check_plan, load_plan
+from lut.output.plots import TITLES, write_plots
 
 DATA = Path(__file__).resolve().parent / "data"
 ROOT = Path(__file__).resolve().parents[1]
@@ -55,7 +55,7 @@ def test_write_plots_renders_every_figure(plan, tmp_path):
 
 
 def _save(make, doc: dict, path: Path) -> Path:
-    from lut.plot_style import save_figure
+    from lut.output.plot_style import save_figure
 
     fig, title = make(doc)
     return save_figure(fig, path, title)
@@ -63,7 +63,7 @@ def _save(make, doc: dict, path: Path) -> Path:
 
 def test_plots_say_what_is_missing(tmp_path):
     """A plan from an older export (no distances) and one whose robot URDF is gone still plot, and say so."""
-    from lut.plots import collision_distance_figure, joints_figure
+    from lut.output.plots import collision_distance_figure, joints_figure
 
     doc = load_plan(DATA / "plan_II.json.gz")
     for key in ("min_distance_m", "closest_pair", "closest_points_m"):
@@ -78,7 +78,7 @@ def test_plots_say_what_is_missing(tmp_path):
 
 
 def test_unconstrained_wrench_limits_plot(tmp_path):
-    from lut.plots import grasp_wrench_figure
+    from lut.output.plots import grasp_wrench_figure
 
     doc = load_plan(DATA / "plan_II.json.gz")
     doc["metrics"]["limits"]["grasp_torque_max_nm"] = None
@@ -88,8 +88,8 @@ def test_unconstrained_wrench_limits_plot(tmp_path):
 
 
 def test_reader_schema_matches_the_writer():
-    from lut.export import SCHEMA
-    from lut.plan_file import SCHEMA as READ
+    from lut.output.export import SCHEMA
+    from lut.output.plan_file import SCHEMA as READ
 
     assert READ == SCHEMA
 
@@ -126,7 +126,7 @@ def test_load_plan_rejects_missing_and_non_json(tmp_path):
 
 
 def _table(path: Path, axes: list[tuple[str, np.ndarray]], torque: bool = True):
-    from lut.store import Table, model_hash, write_table
+    from lut.table.store import Table, model_hash, write_table
 
     n = int(np.prod([len(v) for _, v in axes]))
     rng = np.random.default_rng(1)
@@ -159,7 +159,7 @@ PHASE_FIXED = ("spin_phase_deg", np.array([0.0]))
     ([RATE, ANGLE, PHASE], ""),  # 3 varying: small multiples
 ])
 def test_coverage_maps_for_1_2_3_varying_axes(tmp_path, axes, fixed):
-    from lut.coverage_plots import write_coverage_maps
+    from lut.output.coverage_plots import write_coverage_maps
 
     table = _table(tmp_path / "t.h5", axes)
     paths = write_coverage_maps(table, tmp_path / "maps")
@@ -174,7 +174,7 @@ def test_coverage_maps_for_1_2_3_varying_axes(tmp_path, axes, fixed):
 
 
 def test_coverage_maps_skip_missing_costs_and_page_many_panels(tmp_path, monkeypatch):
-    import lut.coverage_plots as cp
+    import lut.output.coverage_plots as cp
 
     # heatmaps omega_z × omega_y; panels: omega_x (rows) × pitch (columns) = 4, two per page
     monkeypatch.setattr(cp, "MAX_PANELS", 2)
@@ -194,8 +194,8 @@ def test_coverage_maps_skip_missing_costs_and_page_many_panels(tmp_path, monkeyp
 
 # ---- CLI -----------------------------------------------------------------------------------------
 
-# the view commands on the real main group, as lut/cli.py wires them
-CLI = "from lut.cli import main; from lut.cli_view import register; register(main); main()"
+# the view commands on the real main group, as lut/cli/main.py wires them
+CLI = "from lut.cli.main import main; from lut.cli.view import register; register(main); main()"
 
 
 def _run(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
@@ -221,7 +221,7 @@ def _cli_in_process(*args: str):
     import click
     from click.testing import CliRunner
 
-    from lut.cli_view import register
+    from lut.cli.view import register
 
     group = click.Group()
     register(group)
@@ -264,7 +264,7 @@ def test_cli_unwritable_output_is_one_line(tmp_path):
 
 
 def test_lutgen_main_has_the_view_commands():
-    """lut/cli.py registers plot and preview (``register(main)``)."""
-    from lut.cli import main
+    """lut/cli/main.py registers plot and preview (``register(main)``)."""
+    from lut.cli.main import main
 
     assert {"plot", "preview"} <= set(main.commands)

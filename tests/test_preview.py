@@ -1,4 +1,4 @@
-"""The 3D preview page (``lut.preview``): self-contained, small enough, and it really plays in a browser.
+"""The 3D preview page (``lut.output.preview``): self-contained, small enough, and it really plays in a browser.
 
 The browser test opens the page in headless Chromium (Debian package ``chromium``; ``scripts/ensure-chromium``
 installs it when missing and we are root with apt) at two times via ``preview.html?t=…`` and checks that
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from lut.plan_file import PlanFileError, load_plan
-from lut.preview import MAX_FRAMES, frame_indices, preview_data, write_preview
+from lut.output.plan_file import PlanFileError, load_plan
+from lut.output.preview import MAX_FRAMES, frame_indices, preview_data, write_preview
 
 DATA = Path(__file__).resolve().parent / "data"
 ROOT = Path(__file__).resolve().parents[1]

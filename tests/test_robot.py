@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from planner.geometry import Box, Capsule
-from planner.robot import fk_function, pin_configuration
-from planner.rotation import quat_to_matrix
+from planner.model.robot import fk_function, pin_configuration
+from planner.model.rotation import quat_to_matrix
+from planner.model.shapes import Box, Capsule
 
 
 def _random_base(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -49,7 +49,7 @@ def test_casadi_fk_matches_pinocchio_at_100_random_configurations(robot):
 
 def test_payload_inertia_matches_pinocchio_appended_body(robot):
     """with_payload adds the target to the last link exactly as pinocchio's inertia algebra does."""
-    from planner.robot import BodyInertia
+    from planner.model.robot import BodyInertia
 
     payload = BodyInertia(1500.0, np.array([0.1, -0.2, 0.3]), np.diag([5000.0, 3000.0, 7000.0]))
     T = np.eye(4)

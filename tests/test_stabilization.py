@@ -13,17 +13,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.plan_file import load_plan
-from planner.compound import compound_robot
-from planner.freefloating import FreeFloatingModel
+from lut.output.plan_file import load_plan
+from planner.config.scenario import load_scenario
+from planner.model.compound import compound_robot
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.rotation import quat_to_matrix
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
     StabilizationSolution,
     grasp_momentum_world,
 )
-from planner.rotation import quat_to_matrix
-from planner.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

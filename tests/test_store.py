@@ -13,9 +13,9 @@ import h5py
 import numpy as np
 import pytest
 
-from lut import store
-from lut.journal import MAGIC, Journal
-from lut.store import SCHEMA_VERSION, STATUS_CODES, Table, TableError, model_hash, write_table
+from lut.table import store
+from lut.table.journal import MAGIC, Journal
+from lut.table.store import SCHEMA_VERSION, STATUS_CODES, Table, TableError, model_hash, write_table
 
 ROOT = Path(__file__).resolve().parents[1]
 HEADER = {"model_hash": "0123abcd" * 8, "grid_text": "name = 'g'\n"}
@@ -161,7 +161,7 @@ def crash_record(point):
 CRASH_WRITER = CRASH_RECORD + """
 import sys
 from pathlib import Path
-from lut.journal import Journal
+from lut.table.journal import Journal
 
 journal = Journal(Path(sys.argv[1]), {"model_hash": "crash-test"})
 point = len(journal.records())

@@ -1,4 +1,4 @@
-"""Tests of planner.target against independent references (conservation laws, closed forms, FD)."""
+"""Tests of planner.model.target against independent references (conservation laws, closed forms, FD)."""
 
 from __future__ import annotations
 
@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from planner.errors import ConfigError, TargetStateError
-from planner.rotation import (
+from planner.model.rotation import (
     axis_angle_to_matrix,
     matrix_to_quat,
     quat_multiply,
     quat_to_matrix,
     rpy_to_matrix,
 )
-from planner.target import TargetBody, TargetMotion, TargetState, euler_rhs, propagate
+from planner.model.target import TargetBody, TargetMotion, TargetState, euler_rhs, propagate
 
 INERTIA_TUMBLE_KG_M2 = np.diag([5000.0, 3000.0, 7000.0])  # x intermediate, y minor, z major
 OMEGA0_TUMBLE_RAD_S = np.deg2rad([2.0, -3.0, 1.5])
@@ -74,7 +74,7 @@ def test_general_tumble_conserves_energy_and_world_momentum() -> None:
     assert not motion.trajectory.is_closed_form
     times = np.linspace(0.0, 100.0, 501)
 
-    # Reference computed here, per sample, with planner.rotation (not the module's batched helpers).
+    # Reference computed here, per sample, with planner.model.rotation (not the module's batched helpers).
     q_world_body = motion.trajectory.attitude_wxyz(times)
     omega_body = motion.trajectory.omega_body(times)
     energy_ref = 0.5 * np.einsum("ni,ij,nj->n", omega_body, inertia, omega_body)

@@ -15,13 +15,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.plan_file import load_plan
-from planner.freefloating import FreeFloatingModel
+from lut.output.plan_file import load_plan
+from planner.config.scenario import load_scenario
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach_guess import target_motion
 from planner.phases.tracking import TrackingController, TrackingResult
 from planner.phases.tracking_profile import TRACKING_NODES
-from planner.scenario import load_scenario
-from planner.target import TargetMotion, TargetState
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.plan_file import load_plan
-from lut.preview_geometry import chaser_body_poses, pose_matrices
-from planner.contact_rule import APPROACH, STABILIZATION, TRACKING
-from planner.scenario import load_scenario
-from planner.scene import TARGET_BODY, scene_layout
-from planner.verify_collision import required_clearances, sweep_pairs
+from lut.output.plan_file import load_plan
+from lut.output.preview_geometry import chaser_body_poses, pose_matrices
+from planner.collision.contact_rule import APPROACH, STABILIZATION, TRACKING
+from planner.collision.layout import TARGET_BODY, scene_layout
+from planner.config.scenario import load_scenario
+from planner.verify.collision import required_clearances, sweep_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"

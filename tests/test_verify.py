@@ -1,4 +1,4 @@
-"""Dense verification (planner.verify) on small synthetic plans built without any NLP solve.
+"""Dense verification (planner.verify.verifier) on small synthetic plans built without any NLP solve.
 
 The baseline plan: scenario II's chaser moves its joints smoothly (quintic blend) from an offset
 configuration into a grasp configuration over the approach + tracking phases, the base integrated
@@ -16,16 +16,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner.compound import compound_robot, grasp_geometry
-from planner.freefloating import FreeFloatingModel
+from planner.config.scenario import load_scenario
+from planner.model.compound import compound_robot, grasp_geometry
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.robot import pin_configuration
+from planner.model.rotation import matrix_to_quat, quat_to_matrix, rotation_log
+from planner.model.target import TargetState
 from planner.phases.stabilization import GraspState
 from planner.plan import GraspPlan
-from planner.robot import pin_configuration
-from planner.rotation import matrix_to_quat, quat_to_matrix, rotation_log
-from planner.scenario import load_scenario
-from planner.target import TargetState
-from planner.verify import VerifyReport, summary_lines, verify
-from planner.verify_kinematics import derivatives, fd_weights, rotation_rates, select_samples
+from planner.verify.kinematics import derivatives, fd_weights, rotation_rates, select_samples
+from planner.verify.verifier import VerifyReport, summary_lines, verify
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 Q_GRASP = np.array([-0.549, 0.866, -1.88, -0.005, -1.129, 0.588, 0.925])  # attached target clear of the chaser

@@ -25,14 +25,14 @@ import pinocchio as pin
 import pytest
 from numpy.typing import NDArray
 
-from planner.freefloating import FreeFloatingModel
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.robot import BodyInertia, RobotModel, fk_function
+from planner.model.rotation import matrix_to_quat, quat_to_matrix
+from planner.model.target import TargetState
 from planner.plan import GraspPlan
-from planner.robot import BodyInertia, RobotModel, fk_function
-from planner.rotation import matrix_to_quat, quat_to_matrix
-from planner.target import TargetState
-from planner.verify import VerifyReport, verify
-from planner.verify_checks import FEASIBILITY_TOL, joint_checks
-from planner.verify_kinematics import PinKinematics
+from planner.verify.checks import FEASIBILITY_TOL, joint_checks
+from planner.verify.kinematics import PinKinematics
+from planner.verify.verifier import VerifyReport, verify
 from tests.test_verify import T0, T_APP, Builder, baseline_path
 
 Array = NDArray[np.float64]

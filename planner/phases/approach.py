@@ -7,7 +7,7 @@ observed target state (attitude quaternion, body rates), so one symbolic problem
 
 Constraints: joint position and velocity boxes at k via points (Eq. 17-18; linear in P), signed
 distance ≥ margin for every collision pair at the via points (Eq. 19, through
-:class:`~planner.collision_callback.SceneDistanceCallback`), and at t_f¹ the end-effector on the
+:class:`~planner.collision.callback.SceneDistanceCallback`), and at t_f¹ the end-effector on the
 pre-grasp pose — the grasp pose backed off along its z axis (Eq. 20-21; with a free grasp axis a only
 the direction of a is matched). The base is unactuated with zero momentum: its pose is integrated by
 RK4 inside the NLP (single shooting, paper §4.2). Derivatives are exact: CasADi AD for kinematics and
@@ -24,21 +24,22 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.bspline import UniformCubicBSpline, approach_vertices
-from planner.collision_callback import SceneDistanceCallback, pose_vector
-from planner.contact_rule import APPROACH, TRACKING, closed_backoff_m, required_clearance_m
-from planner.costs import manipulability_sym
-from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
-from planner.phases import constraint_backoff
+from planner.collision.callback import SceneDistanceCallback, pose_vector
+from planner.collision.contact_rule import APPROACH, TRACKING, closed_backoff_m, required_clearance_m
+from planner.collision.layout import TARGET_BODY, SceneLayout, build_collision_scene, build_scene, scene_layout
+from planner.config.scenario import Scenario
+from planner.model.freefloating import FreeFloatingModel, quat_to_rotation_sym
+from planner.model.robot import fk_function
+from planner.model.target import TargetState
+from planner.model.target_symbolic import prediction_function
+from planner.nlp import constraint_backoff
+from planner.nlp.bspline import UniformCubicBSpline, approach_vertices
+from planner.nlp.costs import manipulability_sym
+from planner.nlp.feasibility_stop import FeasibilityStop
+from planner.nlp.ipopt import ipopt_options, ipopt_solver
 from planner.phases.approach_guess import TRACKING_SPEED_MARGIN, ApproachGuess, initial_guesses
-from planner.phases.feasibility_stop import FeasibilityStop
-from planner.phases.ipopt import ipopt_options, ipopt_solver
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend
-from planner.robot import fk_function
-from planner.scenario import Scenario
-from planner.scene import TARGET_BODY, SceneLayout, build_collision_scene, build_scene, scene_layout
-from planner.target import TargetState
-from planner.target_symbolic import prediction_function
+from planner.plan_parameters import ApproachParameters
 
 Array = NDArray[np.float64]
 
@@ -54,7 +55,7 @@ BLEND_CHECK_NODES = (0.15, 0.3, 0.45)
 
 @dataclass(frozen=True)
 class ApproachSolution:
-    """Result of the approach NLP. ``params`` in :mod:`planner.bspline`'s layout (rad, rad/s³)."""
+    """Result of the approach NLP. ``params`` in :mod:`planner.nlp.bspline`'s layout (rad, rad/s³)."""
 
     params: Array
     base_offset_m: Array  # θ_b(0) in the orbital plane: (x, z)
@@ -69,6 +70,18 @@ class ApproachSolution:
     # index of the scanned initial guess (approach_guess.initial_guesses, best first) this solution descends
     # from; -1 when it started from a warm start
     start_guess: int = -1
+
+    @property
+    def parameters(self) -> ApproachParameters:
+        """The decision parameters alone (what a warm start or a table needs)."""
+        return ApproachParameters(self.params, self.base_offset_m, self.start_delay_s, self.q_tracking)
+
+    @classmethod
+    def given(cls, parameters: ApproachParameters) -> ApproachSolution:
+        """Given parameters used as they are, without a solve (status ``"given"``, no cost or clearance)."""
+        return cls(parameters.params, parameters.base_offset_m, parameters.start_delay_s, parameters.q_tracking,
+                   success=True, status="given", iterations=0, solve_time_s=0.0, cost=float("nan"),
+                   min_distance_m=float("nan"))
 
 
 def _free_axis_rotation(M, axis: Array):  # noqa: ANN001, ANN202
@@ -376,7 +389,7 @@ class ApproachProblem:
         # J⁺ t + (I − J⁺J) q̇_ref = q̇_ref + J⁺ (t − J q̇_ref), with J⁺ = Jᵀ (J Jᵀ)⁻¹ (J has full row rank)
         return qd_nodes + ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), twist_base - ca.mtimes(J, qd_nodes)))
 
-    def solve(self, state: TargetState, warm_start: ApproachSolution | None = None,
+    def solve(self, state: TargetState, warm_start: ApproachParameters | None = None,
               max_starts: int = 3, tracking_speed_scale: float | None = None,
               skip_guesses: int = 0, max_iterations: int | None = None) -> ApproachSolution:
         """Solve for one observed target state.

@@ -17,16 +17,16 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planner.bspline import UniformCubicBSpline, fit_approach_params
-from planner.costs import manipulability
-from planner.freefloating import FreeFloatingModel
+from planner.collision.layout import build_scene, world_poses
+from planner.config.scenario import Scenario
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.robot import fk_function
+from planner.model.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.model.target import TargetBody, TargetMotion, TargetState
+from planner.nlp.bspline import UniformCubicBSpline, fit_approach_params
+from planner.nlp.costs import manipulability
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
-from planner.robot import fk_function
-from planner.rotation import axis_angle_to_matrix, quat_to_matrix
-from planner.scenario import Scenario
-from planner.scene import build_scene, world_poses
-from planner.target import TargetBody, TargetMotion, TargetState
 
 Array = NDArray[np.float64]
 

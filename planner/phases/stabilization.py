@@ -13,10 +13,10 @@ in the grasp frame — what a wrist force/torque sensor reads. Accelerations com
 derivatives (``casadi.jtimes``) of the symbolic twists along the state rates. Costs: chaser attitude
 disturbance (Σ‖ω_base‖² at the via points) or peak grasp torque (a slack bounding every component).
 With no stabilization cost weight the solve stops at the first iterate inside every constraint
-(:mod:`planner.phases.feasibility_stop`).
+(:mod:`planner.nlp.feasibility_stop`).
 
 The NLP is built once per scenario: where the target was grasped (the compound's last-link inertia, the
-wrench's lever arms) enters as parameters (:mod:`planner.compound`), so every grasp, at any free-axis
+wrench's lever arms) enters as parameters (:mod:`planner.model.compound`), so every grasp, at any free-axis
 angle, reuses it. It is an MX graph over small SX Functions.
 
 A cold solve goes coarse to fine: the same NLP on ``coarse_via_points`` via points first (a third of the
@@ -34,11 +34,11 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.bspline import UniformCubicBSpline, stabilization_vertices
-from planner.collision_callback import SceneDistanceCallback, pose_vector
-from planner.compiled import compiled
-from planner.compound import GEOMETRY_SIZE, GraspGeometry, grasp_geometry
-from planner.freefloating import (
+from planner.collision.callback import SceneDistanceCallback, pose_vector
+from planner.collision.layout import TARGET_BODY, build_scene
+from planner.config.scenario import Scenario
+from planner.model.compound import GEOMETRY_SIZE, GraspGeometry, grasp_geometry
+from planner.model.freefloating import (
     FreeFloatingModel,
     base_pose_rate_sym,
     base_twist_sym,
@@ -47,13 +47,13 @@ from planner.freefloating import (
     quat_to_rotation_sym,
     rk4_step_function,
 )
-from planner.phases import constraint_backoff
-from planner.phases.feasibility_stop import FeasibilityStop
-from planner.phases.ipopt import ipopt_options, ipopt_solver
-from planner.robot import RobotModel, fk_function
-from planner.rotation import quat_to_matrix
-from planner.scenario import Scenario
-from planner.scene import TARGET_BODY, build_scene
+from planner.model.robot import RobotModel, fk_function
+from planner.model.rotation import quat_to_matrix
+from planner.nlp import constraint_backoff
+from planner.nlp.bspline import UniformCubicBSpline, stabilization_vertices
+from planner.nlp.compiled import compiled
+from planner.nlp.feasibility_stop import FeasibilityStop
+from planner.nlp.ipopt import ipopt_options, ipopt_solver
 
 Array = NDArray[np.float64]
 
@@ -62,7 +62,7 @@ Array = NDArray[np.float64]
 # own Jacobian (a few reverse sweeps) and multiplies the seeds when jac_penalty × its 69 inputs (34 of state,
 # 35 of grasp geometry) is below the number of directions, which the default (2) forbids. Same exact
 # derivative, fewer sweeps: measured on scenario II, interpreted, the constraint Jacobian 0.29 s → 0.16 s. (A
-# compiled wrench, planner.compiled, is always differentiated through its compiled Jacobian.)
+# compiled wrench, planner.nlp.compiled, is always differentiated through its compiled Jacobian.)
 JACOBIAN_FIRST_PENALTY = 0.25
 
 
@@ -80,7 +80,7 @@ class GraspState:
 
 @dataclass(frozen=True)
 class StabilizationSolution:
-    params: Array  # Eq. 24 free parameters, planner.bspline layout
+    params: Array  # Eq. 24 free parameters, planner.nlp.bspline layout
     success: bool
     status: str
     iterations: int
@@ -111,7 +111,7 @@ def wrench_function(robot: RobotModel) -> ca.Function:
 
     F, M: force (N) and moment about the grasp point (N·m) the gripper exerts on the target, in the
     grasp frame; ω_base: chaser base angular velocity (rad/s, base frame); R_ee, p_ee: gripper pose in the
-    world. ``geometry``: the grasp geometry (:mod:`planner.compound`), so the Function depends on the
+    world. ``geometry``: the grasp geometry (:mod:`planner.model.compound`), so the Function depends on the
     chaser ``robot`` alone.
     """
     n = robot.n_joints
@@ -169,7 +169,7 @@ def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float
 
 
 # The feasibility stop's tolerance on the constraint values: IPOPT's iterates sit on the boundary of
-# active constraints only to ~1e-6 before mu is small; the back-offs (planner.phases.constraint_backoff)
+# active constraints only to ~1e-6 before mu is small; the back-offs (planner.nlp.constraint_backoff)
 # are 1e4 times larger, so this changes nothing dense verification can see.
 STOP_CONSTRAINT_TOL = 1e-6
 
@@ -185,7 +185,7 @@ class InnerFunctions:
 
     @staticmethod
     def of(robot: RobotModel) -> InnerFunctions:
-        """Build them, the RK4 step and the wrench compiled to C (:mod:`planner.compiled`)."""
+        """Build them, the RK4 step and the wrench compiled to C (:mod:`planner.nlp.compiled`)."""
         geometry = ca.SX.sym("geometry", GEOMETRY_SIZE)
         return InnerFunctions(compiled(rk4_step_function(GraspGeometry.unpack(geometry).compound(robot), geometry)),
                               compiled(wrench_function(robot), {"jac_penalty": JACOBIAN_FIRST_PENALTY}),

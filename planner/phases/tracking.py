@@ -27,12 +27,12 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.interpolate import CubicHermiteSpline
 
-from planner.costs import manipulability_sym
-from planner.freefloating import FreeFloatingModel, quat_to_rotation_sym
+from planner.config.scenario import Scenario
+from planner.model.freefloating import FreeFloatingModel, quat_to_rotation_sym
+from planner.model.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.model.target import TargetMotion
+from planner.nlp.costs import manipulability_sym
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend, gain_ramp
-from planner.rotation import axis_angle_to_matrix, quat_to_matrix
-from planner.scenario import Scenario
-from planner.target import TargetMotion
 
 Array = NDArray[np.float64]
 

@@ -126,16 +126,16 @@ def timed(fn: Callable[[], Any]) -> tuple[Any, float]:
 
 
 @lru_cache(maxsize=2)
-def table_query(path: Path):  # noqa: ANN201 - lut.query.TableQuery (imported lazily: it builds a planner)
+def table_query(path: Path):  # noqa: ANN201 - lut.query.table_query.TableQuery (imported lazily: it builds a planner)
     """One opened table per path for the whole run (primitives and queries share the golden table)."""
-    from lut.query import TableQuery
+    from lut.query.table_query import TableQuery
 
     return TableQuery(path)
 
 
-def load_scenario_named(name: str):  # noqa: ANN201 - planner.scenario.Scenario
+def load_scenario_named(name: str):  # noqa: ANN201 - planner.config.scenario.Scenario
     """``configs/scenarios/<name>.toml``."""
-    from planner.scenario import load_scenario
+    from planner.config.scenario import load_scenario
 
     return load_scenario(SCENARIOS / f"{name}.toml")
 

@@ -28,7 +28,7 @@ def _cost_weights(scenario, variant: str) -> dict[str, float]:  # noqa: ANN001 -
 def _plan_runs(scenario, runs: int) -> dict[str, Any]:  # noqa: ANN001 - Scenario
     """``runs`` plans of the default state with one Planner (problems built once, as a table build does)."""
     from planner.plan import Planner
-    from planner.verify import verify
+    from planner.verify.verifier import verify
 
     planner, build_s = timed(lambda: Planner(scenario))
     state = scenario.target_state.as_state()
@@ -73,8 +73,8 @@ def plans(settings: Settings) -> dict[str, Any]:
             sc = replace(sc, costs=replace(sc.costs, **weights),
                          solver=replace(sc.solver, max_wall_s=min(settings.plan_cap_s, sc.solver.max_wall_s)))
             out[name][variant] = {**_plan_runs(sc, settings.plan_runs), "cost_weights": weights}
-    # plans are ~1.6× slower with interpreted inner Functions: say which ran (planner.compiled)
-    from planner import compiled
+    # plans are ~1.6× slower with interpreted inner Functions: say which ran (planner.nlp.compiled)
+    from planner.nlp import compiled
 
     out["compiled_functions"] = {"enabled": compiled.compile_enabled(), "fallbacks": list(compiled.fallback_reasons)}
     return out

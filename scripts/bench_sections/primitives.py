@@ -28,8 +28,8 @@ def _random_configuration(robot, rng: np.random.Generator) -> tuple[np.ndarray, 
 
 def kinematics(settings: Settings) -> dict[str, Any]:
     """FK of all bodies and momentum map + J*: our CasADi Functions vs pinocchio on the same model."""
-    from planner.freefloating import FreeFloatingModel
-    from planner.robot import fk_function, pin_configuration
+    from planner.model.freefloating import FreeFloatingModel
+    from planner.model.robot import fk_function, pin_configuration
 
     robot = load_scenario_named("scenario_II").robot
     q, p_base, quat = _random_configuration(robot, np.random.default_rng(settings.seed))
@@ -62,10 +62,10 @@ def kinematics(settings: Settings) -> dict[str, Any]:
 def collision_sweep(settings: Settings) -> dict[str, Any]:
     """Every pair of the approach's scene (37) at a random configuration: the NLPs' engine for one pose set and
     for the approach's 23 via points in one call, and verify's engine over 1000 samples."""
-    from planner.robot import fk_function
-    from planner.rotation import quat_to_matrix
-    from planner.scene import build_scene, scene_layout, world_poses
-    from planner.verify_collision import sweep_pairs
+    from planner.collision.layout import build_scene, scene_layout, world_poses
+    from planner.model.robot import fk_function
+    from planner.model.rotation import quat_to_matrix
+    from planner.verify.collision import sweep_pairs
 
     sc = load_scenario_named("scenario_II")
     rng = np.random.default_rng(settings.seed + 1)
@@ -87,24 +87,24 @@ def collision_sweep(settings: Settings) -> dict[str, Any]:
             "collision_engines_max_difference_m": float(np.max(np.abs(second - [d.distance_m for d in distances]))),
             "collision_pairs": len(scene.pairs),
             "collision_min_distance_m": float(min(d.distance_m for d in distances)),
-            "notes_collision": "NLP engine: planner.distance_closed_form (one pose set; 23 via points in one call); "
-                               "verify's engine: planner.verify_collision over 1000 samples; python-fcl's "
+            "notes_collision": "NLP engine: planner.collision.closed_form (one pose set; 23 via points in one call); "
+                               "verify's engine: planner.verify.collision over 1000 samples; python-fcl's "
                                "signed path, replaced, took 161 us for the 29 pairs it had"}
 
 
 def verify_one_plan(settings: Settings) -> dict[str, Any]:
-    """``planner.verify.verify`` of a whole plan: the golden table's parameters re-simulated at a grid
+    """``planner.verify.verifier.verify`` of a whole plan: the golden table's parameters re-simulated at a grid
     node (interpolation there returns that node's record), timed apart from the simulation."""
-    from lut.records import warm_start_from_record
-    from planner.verify import DEFAULT_STEP_S, verify
+    from lut.table.records import parameters_from_record
+    from planner.verify.verifier import DEFAULT_STEP_S, verify
 
     tq = table_query(GOLDEN_TABLE)
     point = tq.grid.seed_point()
     state = tq.grid.state(point)
     rec, corners, _ = tq.interpolate(state)
     rate = float(np.linalg.norm(state.omega_body_rad_s))
-    warm = warm_start_from_record(rec, 0.0, tq.scenario.phases.max_start_delay_s, 2 * np.pi / rate)
-    plan, simulate_s = timed(lambda: tq.planner.simulate(state, warm))
+    given = parameters_from_record(rec).shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.max_start_delay_s)
+    plan, simulate_s = timed(lambda: tq.planner.simulate(state, given))
     runs = []
     for _ in range(settings.verify_runs):
         report, seconds = timed(lambda: verify(plan))

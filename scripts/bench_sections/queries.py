@@ -14,14 +14,14 @@ import numpy as np
 
 from bench_sections.common import ROOT, Settings, relative, skipped, stats_p95, table_query
 
-# lut.query starts no refine when less than MIN_REFINE_S is left after FINISH_RESERVE_S: a 1 s budget
+# lut.query.table_query starts no refine when less than MIN_REFINE_S is left after FINISH_RESERVE_S: a 1 s budget
 # measures the table alone (lookup, interpolation, re-simulation, verification), as tests/test_ci_table.py does
 NO_REFINE_BUDGET_S = 1.0
 REFINE_KEYS = ("refine_s", "query_with_refine_total_s", "fraction_feasible_after_refine", "refined_queries",
                "queries_over_budget", "budget_s")
 
 
-def in_grid_states(grid, n: int, seed: int) -> list:  # noqa: ANN001 - lut.grid.Grid -> list[TargetState]
+def in_grid_states(grid, n: int, seed: int) -> list:  # noqa: ANN001 - lut.table.grid.Grid -> list[TargetState]
     """``n`` states drawn uniformly (seeded) from the box of the grid's axis values."""
     rng = np.random.default_rng(seed)
     coords = np.column_stack([rng.uniform(v.min(), v.max(), size=n) for v in grid.axis_values])
@@ -76,7 +76,7 @@ def query_process_memory(table: Path, state) -> dict[str, Any]:  # noqa: ANN001 
     wrapper = ("import resource, subprocess, sys; rc = subprocess.run(sys.argv[1:]).returncode; "
                "print('RUSAGE', rc, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
     with tempfile.TemporaryDirectory(prefix="lutgen-bench-") as tmp:
-        cli = [sys.executable, "-c", "from lut.cli import main; main()", "query", str(table), "--attitude", att,
+        cli = [sys.executable, "-c", "from lut.cli.main import main; main()", "query", str(table), "--attitude", att,
                "--omega-deg-s", omega, "--budget-s", str(NO_REFINE_BUDGET_S), "--out", str(Path(tmp) / "plan.json")]
         t0 = time.perf_counter()
         proc = subprocess.run([sys.executable, "-c", wrapper, *cli], capture_output=True, text=True, cwd=ROOT)

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import h5py
 
-from lut.build import prepare, table_hash
-from lut.store import write_table
+from lut.build.sweep import prepare, table_hash
+from lut.table.store import write_table
 from tests.support.fake_solver import solve as fake_solve
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -35,7 +35,7 @@ def lutgen_in_process(*args: str | Path) -> subprocess.CompletedProcess:
 
     from click.testing import CliRunner
 
-    from lut.cli import main
+    from lut.cli.main import main
 
     result = CliRunner().invoke(main, [str(a) for a in args], prog_name="lutgen")
     stderr = result.stderr

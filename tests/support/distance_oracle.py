@@ -16,8 +16,8 @@ of the swept shapes is the core signed distance minus both radii, exactly, separ
 * Segment-segment cores never penetrate (their Minkowski difference is flat): the depth is 0 when they
   meet, and their distance is also given in closed form (Ericson, RTCD §5.1.9) as a cross-check.
 
-No code is shared with ``planner.collision`` or ``planner.distance_closed_form``: only the shape
-dataclasses of ``planner.geometry`` are read.
+No code is shared with ``planner.collision.scene_distances`` or ``planner.collision.closed_form``: only the shape
+dataclasses of ``planner.model.shapes`` are read.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import lsq_linear
 
-from planner.geometry import Box, Capsule
+from planner.model.shapes import Box, Capsule
 
 Array = NDArray[np.float64]
 Shape = Box | Capsule

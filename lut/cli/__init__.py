@@ -1,0 +1,1 @@
+"""The ``lutgen`` command line: commands, exit codes, one-line errors."""

@@ -1,0 +1,506 @@
+"""The look-up table's grid over the target's observed state at t = 0 (DESIGN §6).
+
+A grid config (TOML, see ``configs/grids/*.toml``) names a scenario, a kind and axes
+``{name, min, max, count}``; every axis the config omits is fixed (a single value) at the scenario
+default state's coordinate. Axis values are in degrees (``_deg``) and degrees per second (``_deg_s``).
+The grid's axes are always *all* axes of its kind, in the canonical order of :data:`AXIS_NAMES`;
+points are numbered in C order (the last axis varies fastest).
+
+Conventions. World = the orbital frame O (the orbital plane is x–z). ``R(v, a)`` is the right-handed
+rotation by ``a`` about unit ``v``.
+
+**flat_spin** — the target spins steadily about its *major* principal axis (largest moment of inertia):
+
+* ``e`` — the major axis in the body frame, a unit eigenvector of the target's inertia, signed so that
+  its largest-magnitude component is positive (scenario I: +y, scenario II: +z).
+* ``spin_rate_deg_s`` — ``r = |ω| > 0``; ``ω_body = r e`` (the spin is along +e, never -e).
+* ``spin_axis_angle_deg`` — ``α``: the world spin axis ``s = R e = (cos α, 0, sin α)`` lies in the
+  orbital x–z plane, ``α`` measured from +x towards +z (α = 90°: s = +z).
+* ``spin_phase_deg`` — ``φ``: ``R_world_body = R(s, φ) · R(y, -α) · R₀``, where the reference ``R₀`` is
+  the minimal rotation taking ``e`` onto +x (so ``R(y, -α) R₀`` takes ``e`` onto ``s``). φ turns the body
+  about ``s`` in the sense of the spin. Scenario II's default (identity, ω = 4 °/s about body z) is
+  exactly ``(4, 90, 0)``. Scenario I's default spins about the orbit normal y, which is not in this
+  family: a flat-spin grid over it must give all three axes.
+* Symmetry: the state at phase φ is the state at φ₀ advanced by ``(φ - φ₀) / r``
+  (:func:`phase_time_shift_s`), so the phase axis is periodic (360° wraps) and may be coarse.
+
+**tumble** — ``omega_x/y/z_deg_s`` are the body rates ``ω_body``; ``roll_deg``, ``pitch_deg``, ``yaw_deg``
+the initial attitude, URDF convention ``R_world_body = Rz(yaw) Ry(pitch) Rx(roll)``; pitch must stay
+inside (-90°, 90°), where the angles are unique.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from planner.config.limits import MAX_GRID_POINTS
+from planner.config.scenario import _read_toml, _Table, parse_toml
+from planner.errors import ConfigError, TargetStateError
+from planner.model.rotation import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rpy_to_matrix
+from planner.model.target import TargetState
+
+Array = NDArray[np.float64]
+
+KINDS = ("flat_spin", "tumble")
+AXIS_NAMES: dict[str, tuple[str, ...]] = {
+    "flat_spin": ("spin_rate_deg_s", "spin_axis_angle_deg", "spin_phase_deg"),
+    "tumble": ("omega_x_deg_s", "omega_y_deg_s", "omega_z_deg_s", "roll_deg", "pitch_deg", "yaw_deg"),
+}
+PHASE_AXIS = "spin_phase_deg"
+PERIODIC_AXES = frozenset({PHASE_AXIS})  # 360° is the same state as 0°
+# angles whose value is only defined modulo 360: a state's coordinate is taken in the axis' window
+_ANGLE_AXES = frozenset({"spin_axis_angle_deg", "spin_phase_deg", "roll_deg", "yaw_deg"})
+# a state is a flat spin about the major axis when ω and s are this close (rad) to the family
+FLAT_SPIN_TOL_RAD = 1e-6
+# coordinates (deg or deg/s) this close to a grid bound or a fixed axis value count as on it
+COORD_TOL = 1e-6
+
+
+# ----------------------------------------------------------------------------------------------------
+# Config
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One grid axis: ``count`` evenly spaced values from ``min`` to ``max`` (count 1: ``min == max``)."""
+
+    name: str
+    min: float
+    max: float
+    count: int
+
+    def values(self) -> Array:
+        if self.count == 1:
+            return np.array([float(self.min)])
+        return np.linspace(self.min, self.max, self.count)
+
+    @property
+    def step(self) -> float:
+        """Spacing of the values (0 for a single value)."""
+        return 0.0 if self.count == 1 else (self.max - self.min) / (self.count - 1)
+
+    @property
+    def periodic(self) -> bool:
+        return self.name in PERIODIC_AXES
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """A validated grid config; ``axes`` as the file gives them (omitted axes are added by :class:`Grid`)."""
+
+    source: str
+    text: str
+    name: str
+    scenario_path: Path
+    kind: str
+    axes: tuple[Axis, ...]
+
+
+def load_grid(path: str | Path) -> GridConfig:
+    """Read and validate a grid config TOML file; its ``scenario`` is relative to the file's folder."""
+    path = Path(path)
+    data, text = _read_toml(path)
+    return _parse_grid(data, text, str(path), path.parent, None)
+
+
+def load_grid_text(text: str, source: str, scenario_path: str | Path | None = None) -> GridConfig:
+    """Validate grid config ``text`` (e.g. stored in a table); ``source`` names it in errors.
+
+    ``scenario_path`` overrides the config's ``scenario`` field (which is still validated); without
+    it, a relative ``scenario`` is taken relative to the folder of ``source``.
+    """
+    data = parse_toml(text, source)
+    override = None if scenario_path is None else Path(scenario_path)
+    return _parse_grid(data, text, source, Path(source).parent, override)
+
+
+def _parse_grid(data: dict, text: str, source: str, base_dir: Path, scenario_override: Path | None) -> GridConfig:
+    t = _Table(data, source)
+    name = t.string("name")
+    if not name.strip():
+        raise t.error("name", "must not be empty")
+    scenario = t.string("scenario")
+    if scenario_override is not None:
+        scenario_path = scenario_override
+    else:
+        scenario_path = Path(os.path.normpath((base_dir / scenario).absolute()))
+        if not scenario_path.is_file():
+            raise t.error("scenario", f"file not found: {scenario_path}")
+    kind = t.string("kind", choices=KINDS)
+    allowed = AXIS_NAMES[kind]
+    axes: list[Axis] = []
+    seen: dict[str, str] = {}
+    for a in t.tables("axes"):
+        axis_name = a.string("name")
+        if axis_name not in allowed:
+            raise a.error("name", f"unknown axis {axis_name!r} for kind {kind!r}; expected one of {', '.join(allowed)}")
+        if axis_name in seen:
+            raise a.error("name", f"duplicate axis {axis_name!r} (also {seen[axis_name]})")
+        seen[axis_name] = a.field("name")
+        lo = a.number("min")
+        hi = a.number("max")
+        count = a.number("count", integer=True)
+        a.finish()
+        axes.append(_check_axis(a, Axis(axis_name, lo, hi, int(count))))
+    t.finish()
+    n_points = math.prod(ax.count for ax in axes)
+    if n_points > MAX_GRID_POINTS:
+        raise t.error("axes", f"the grid has {n_points} points, more than {MAX_GRID_POINTS} (sanity limit): "
+                      "check the counts")
+    return GridConfig(source, text, name, scenario_path, kind, tuple(axes))
+
+
+def _check_axis(a: _Table, axis: Axis) -> Axis:
+    if axis.count < 1:
+        raise a.error("count", f"must be >= 1, got {axis.count}")
+    if axis.min > axis.max:
+        raise a.error("max", f"must be >= min ({axis.min:g}), got {axis.max:g}")
+    if axis.count == 1 and axis.min != axis.max:
+        raise a.error("count", f"count = 1 needs min == max, got min {axis.min:g}, max {axis.max:g}")
+    if axis.count > 1 and axis.min == axis.max:
+        raise a.error("count", f"count = {axis.count} needs max > min (the points would coincide)")
+    if axis.name == "spin_rate_deg_s" and axis.min <= 0:
+        raise a.error("min", f"a flat spin needs a spin rate > 0, got {axis.min:g}")
+    if axis.name in _ANGLE_AXES and axis.max - axis.min >= 360:
+        raise a.error("max", f"max - min must be < 360 (an angle {360:g}° away is the same state), "
+                             f"got {axis.max - axis.min:g}")
+    if axis.name == "pitch_deg":
+        for key, value in (("min", axis.min), ("max", axis.max)):
+            if not -90 < value < 90:
+                raise a.error(key, f"pitch must be inside (-90, 90) (roll-pitch-yaw is singular at ±90°), "
+                                   f"got {value:g}")
+    return axis
+
+
+# ----------------------------------------------------------------------------------------------------
+# Symmetry
+
+
+def phase_time_shift_s(phase_from_deg: float, phase_to_deg: float, rate_deg_s: float) -> float:
+    """Time (s) a flat spin at ``phase_from_deg`` takes to reach ``phase_to_deg`` (mod 360).
+
+    The smallest non-negative shift: ``((to - from) mod 360) / rate``, in ``[0, 360 / rate)``; a
+    difference within 1e-9° of a full turn counts as 0. ``rate_deg_s`` must be finite and > 0.
+    """
+    rate = float(rate_deg_s)
+    if not (math.isfinite(rate) and rate > 0):
+        raise ValueError(f"rate_deg_s must be finite and > 0, got {rate_deg_s!r}")
+    d = (float(phase_to_deg) - float(phase_from_deg)) % 360.0
+    if not math.isfinite(d):
+        raise ValueError(f"phases must be finite, got {phase_from_deg!r}, {phase_to_deg!r}")
+    if d > 360.0 - 1e-9:
+        d = 0.0
+    return d / rate
+
+
+# ----------------------------------------------------------------------------------------------------
+# Grid
+
+
+@dataclass
+class Cell:
+    """The grid cell enclosing some coordinates.
+
+    ``corners``: flat indices of the 2^d corner points (d = axes with count > 1); ``weights``: their
+    multilinear interpolation weights (≥ 0, sum 1); ``coords``: the coordinates located (the phase taken
+    in ``[min, min + 360)``); ``corner_coords`` (2^d × n_axes): the corners' coordinates unwrapped across
+    the phase wrap, so that ``weights @ corner_coords == coords`` on every axis with count > 1.
+    """
+
+    corners: list[int]
+    weights: Array
+    coords: Array
+    corner_coords: Array
+
+
+class Grid:
+    """Grid points ↔ target states, cells, and the continuation order of a build.
+
+    ``inertia_body_kg_m2`` is the target's inertia (body frame; it defines the flat spin's major axis);
+    ``default_state`` is the scenario's default state (it fixes the axes the config omits and seeds the
+    continuation).
+    """
+
+    def __init__(self, config: GridConfig, inertia_body_kg_m2: ArrayLike, default_state: TargetState) -> None:
+        self.config = config
+        self.kind = config.kind
+        inertia = np.asarray(inertia_body_kg_m2, dtype=float)
+        if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)):
+            raise ValueError(f"inertia_body_kg_m2 must be a finite 3×3 matrix, got shape {inertia.shape}")
+        self.inertia_body_kg_m2 = 0.5 * (inertia + inertia.T)
+        self.default_state = default_state
+        self.major_axis_body: Array | None = None
+        if self.kind == "flat_spin":
+            eig, vecs = np.linalg.eigh(self.inertia_body_kg_m2)
+            if eig[2] - eig[1] <= 1e-9 * abs(eig[2]):
+                raise ConfigError(config.source, "kind", "a flat-spin grid needs a unique major axis, but the "
+                                  f"target's two largest principal moments are equal ({eig[1]:g}, {eig[2]:g})")
+            e = vecs[:, 2]
+            e = e if e[int(np.argmax(np.abs(e)))] > 0 else -e
+            self.major_axis_body = e / np.linalg.norm(e)
+            self._R_ref = _minimal_rotation(self.major_axis_body, np.array([1.0, 0.0, 0.0]))
+
+        given = {ax.name: ax for ax in config.axes}
+        names = AXIS_NAMES[self.kind]
+        try:
+            default_raw: Array | None = self._raw_coordinates(default_state)
+            default_problem = ""
+        except TargetStateError as exc:
+            default_raw, default_problem = None, str(exc)
+        axes = []
+        for i, name in enumerate(names):
+            if name in given:
+                axes.append(given[name])
+                continue
+            if default_raw is None:
+                raise ConfigError(config.source, "axes", f"no {name} axis, and the scenario's default state "
+                                  f"cannot fix it: {default_problem}; give every axis of the kind")
+            value = float(default_raw[i])
+            axes.append(Axis(name, value, value, 1))
+        self.axes: tuple[Axis, ...] = tuple(axes)
+        self._values = [ax.values() for ax in self.axes]
+        self._shape = tuple(ax.count for ax in self.axes)
+        self._n_points = math.prod(self._shape)
+        self.default_coordinates: Array | None = None
+        if default_raw is not None:
+            self.default_coordinates = self._canonical(default_raw)
+
+    # ---- shape and indices ------------------------------------------------------------------------
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self._shape
+
+    @property
+    def n_points(self) -> int:
+        return self._n_points
+
+    @property
+    def axis_names(self) -> list[str]:
+        return [ax.name for ax in self.axes]
+
+    @property
+    def axis_values(self) -> list[Array]:
+        return [v.copy() for v in self._values]
+
+    def index_of(self, flat: int) -> tuple[int, ...]:
+        flat = int(flat)
+        if not 0 <= flat < self._n_points:
+            raise IndexError(f"grid point {flat} out of range [0, {self._n_points})")
+        return tuple(int(i) for i in np.unravel_index(flat, self._shape))
+
+    def flat_of(self, idx: ArrayLike) -> int:
+        idx = tuple(int(i) for i in idx)
+        if len(idx) != len(self._shape) or any(not 0 <= i < n for i, n in zip(idx, self._shape, strict=True)):
+            raise IndexError(f"grid index {idx} out of range for shape {self._shape}")
+        return int(np.ravel_multi_index(idx, self._shape))
+
+    def coordinates(self, flat: int) -> Array:
+        """Axis values of grid point ``flat`` (canonical axis order)."""
+        return np.array([v[i] for v, i in zip(self._values, self.index_of(flat), strict=True)])
+
+    # ---- states ------------------------------------------------------------------------------------
+
+    def state(self, flat: int) -> TargetState:
+        """The target state at t = 0 of grid point ``flat``."""
+        return self.state_at(self.coordinates(flat))
+
+    def state_at(self, coords: ArrayLike) -> TargetState:
+        """The target state at any coordinates (on or off the grid; no range check)."""
+        c = self._check_coords(coords)
+        if self.kind == "flat_spin":
+            rate, alpha, phi = np.radians(c)
+            R = self._flat_spin_rotation(alpha, phi)
+            return TargetState(matrix_to_quat(R), rate * self.major_axis_body)
+        omega = np.radians(c[:3])
+        return TargetState(matrix_to_quat(rpy_to_matrix(np.radians(c[3:]))), omega)
+
+    def coordinates_of_state(self, state: TargetState) -> Array:
+        """Grid coordinates of ``state`` (the inverse of :meth:`state_at`); angles are taken in each
+        axis' window (phase in ``[min, min + 360)``, other angles nearest the axis' centre).
+
+        Flat spin: ``TargetStateError`` saying why when the state is not a flat spin about the major axis
+        (within 1e-6 rad) with its spin axis in the orbital x–z plane. NaN/inf: ``TargetStateError``.
+        """
+        return self._canonical(self._raw_coordinates(state))
+
+    def _flat_spin_rotation(self, alpha_rad: float, phi_rad: float) -> Array:
+        s = np.array([math.cos(alpha_rad), 0.0, math.sin(alpha_rad)])
+        R_align = axis_angle_to_matrix([0.0, 1.0, 0.0], -alpha_rad) @ self._R_ref
+        return axis_angle_to_matrix(s, phi_rad) @ R_align
+
+    def _raw_coordinates(self, state: TargetState) -> Array:
+        q = np.asarray(state.attitude_wxyz, dtype=float)
+        omega = np.asarray(state.omega_body_rad_s, dtype=float)
+        if q.shape != (4,) or omega.shape != (3,):
+            raise TargetStateError(f"target state: expected a quaternion (4) and body rates (3), got shapes "
+                                   f"{q.shape}, {omega.shape}")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(omega))):
+            raise TargetStateError(f"target state must be finite, got attitude_wxyz {q.tolist()}, "
+                                   f"omega_body_rad_s {omega.tolist()}")
+        R = quat_to_matrix(q)
+        if self.kind == "tumble":
+            pitch = math.asin(float(np.clip(-R[2, 0], -1.0, 1.0)))
+            if math.cos(pitch) < 1e-9:
+                raise TargetStateError("target state: attitude at pitch ±90°, where roll and yaw are not defined")
+            roll = math.atan2(R[2, 1], R[2, 2])
+            yaw = math.atan2(R[1, 0], R[0, 0])
+            return np.degrees(np.concatenate([omega, [roll, pitch, yaw]]))
+        e = self.major_axis_body
+        rate = float(np.linalg.norm(omega))
+        if rate == 0.0:
+            raise TargetStateError("not a flat spin: the target does not rotate (ω = 0); a flat-spin table "
+                                   "needs a spin rate > 0")
+        off = math.atan2(float(np.linalg.norm(np.cross(omega, e))), float(omega @ e))
+        if off > FLAT_SPIN_TOL_RAD:
+            why = ("it spins about -e, against the grid's convention ω_body = +rate·e" if off > math.pi / 2
+                   else f"ω_body is {off:.3g} rad away from it")
+            raise TargetStateError(f"not a flat spin about the major principal axis e = {np.round(e, 6).tolist()} "
+                                   f"(body frame): {why} (tolerance {FLAT_SPIN_TOL_RAD:g} rad)")
+        s = R @ e
+        tilt = math.asin(min(1.0, abs(float(s[1]))))
+        if tilt > FLAT_SPIN_TOL_RAD:
+            raise TargetStateError(f"flat spin with its spin axis {np.round(s, 6).tolist()} (world) {tilt:.3g} rad "
+                                   f"out of the orbital x–z plane (tolerance {FLAT_SPIN_TOL_RAD:g} rad); "
+                                   "a flat-spin grid holds spin axes in that plane only")
+        alpha = math.atan2(float(s[2]), float(s[0]))
+        M = R @ self._flat_spin_rotation(alpha, 0.0).T  # = R(s, φ)
+        u = np.array([0.0, 1.0, 0.0])  # ⊥ s
+        Mu = M @ u
+        phi = math.atan2(float(s @ np.cross(u, Mu)), float(u @ Mu))
+        return np.array([math.degrees(rate), math.degrees(alpha), math.degrees(phi)])
+
+    def _canonical(self, raw: Array) -> Array:
+        """Angles moved by whole turns into each axis' window."""
+        c = np.array(raw, dtype=float)
+        for i, ax in enumerate(self.axes):
+            if ax.periodic:
+                c[i] = ax.min + ((c[i] - ax.min + COORD_TOL) % 360.0) - COORD_TOL
+            elif ax.name in _ANGLE_AXES:
+                centre = 0.5 * (ax.min + ax.max)
+                c[i] += 360.0 * round((centre - c[i]) / 360.0)
+        return c
+
+    def _check_coords(self, coords: ArrayLike) -> Array:
+        c = np.array(coords, dtype=float).reshape(-1)
+        if c.shape != (len(self.axes),):
+            raise ValueError(f"expected {len(self.axes)} coordinates ({', '.join(self.axis_names)}), got {c.size}")
+        for name, value in zip(self.axis_names, c, strict=True):
+            if not math.isfinite(value):
+                raise TargetStateError(f"grid coordinate {name} = {value} is not finite")
+        return c
+
+    # ---- cells ----------------------------------------------------------------------------------------
+
+    def locate(self, coords: ArrayLike) -> Cell:
+        """The cell enclosing ``coords`` with multilinear weights; the phase axis wraps at 360°.
+
+        Outside the grid on any other axis (beyond 1e-6 of a bound, or off a single-valued axis):
+        ``TargetStateError`` naming the axis, e.g. ``spin_rate_deg_s = 5.2 not in [3, 4]``.
+        """
+        c = self._check_coords(coords)
+        per_axis: list[list[tuple[int, float, float]]] = []  # (index, weight, unwrapped coordinate)
+        for i, (ax, vals) in enumerate(zip(self.axes, self._values, strict=True)):
+            x = c[i]
+            if ax.periodic:
+                x = ax.min + ((x - ax.min + COORD_TOL) % 360.0) - COORD_TOL
+                c[i] = x
+            elif not (ax.min - COORD_TOL <= x <= ax.max + COORD_TOL):
+                fixed = f" (the grid fixes this axis at {ax.min:.10g})" if ax.count == 1 else ""
+                raise TargetStateError(f"target state is outside the grid: {ax.name} = {x:.10g} not in "
+                                       f"[{ax.min:.10g}, {ax.max:.10g}]{fixed}")
+            if ax.count == 1:
+                per_axis.append([(0, 1.0, float(vals[0]))])
+                continue
+            if ax.periodic and x > ax.max + COORD_TOL:  # between the last value and the first one + 360
+                t = (x - ax.max) / (ax.min + 360.0 - ax.max)
+                per_axis.append([(ax.count - 1, 1.0 - t, ax.max), (0, t, ax.min + 360.0)])
+                continue
+            xc = min(max(x, ax.min), ax.max)
+            j = int(np.clip(np.searchsorted(vals, xc, side="right") - 1, 0, ax.count - 2))
+            t = float(np.clip((xc - vals[j]) / (vals[j + 1] - vals[j]), 0.0, 1.0))
+            per_axis.append([(j, 1.0 - t, float(vals[j])), (j + 1, t, float(vals[j + 1]))])
+        corners, weights, corner_coords = [], [], []
+        for combo in itertools.product(*per_axis):
+            corners.append(self.flat_of([k for k, _, _ in combo]))
+            weights.append(math.prod(w for _, w, _ in combo))
+            corner_coords.append([x for _, _, x in combo])
+        return Cell(corners, np.array(weights), c, np.array(corner_coords))
+
+    def normalised_distance(self, a: ArrayLike, b: ArrayLike) -> float:
+        """Distance between coordinates in grid steps (axis by axis; phase circular; 1 unit on fixed axes)."""
+        d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+        for i, ax in enumerate(self.axes):
+            if ax.periodic:
+                d[i] = (d[i] + 180.0) % 360.0 - 180.0
+            if ax.count > 1:
+                d[i] /= ax.step
+        return float(np.linalg.norm(d))
+
+    # ---- continuation ---------------------------------------------------------------------------------
+
+    def neighbours(self, flat: int) -> list[int]:
+        """Axis-adjacent grid points, ascending. Across the phase wrap only when the wrap gap is one step."""
+        idx = self.index_of(flat)
+        out: set[int] = set()
+        for a, ax in enumerate(self.axes):
+            if ax.count == 1:
+                continue
+            wraps = ax.periodic and (360.0 - (ax.max - ax.min)) <= ax.step * (1 + 1e-9)
+            for d in (-1, 1):
+                k = idx[a] + d
+                if wraps:
+                    k %= ax.count
+                elif not 0 <= k < ax.count:
+                    continue
+                if k != idx[a]:
+                    out.add(self.flat_of(idx[:a] + (k,) + idx[a + 1:]))
+        return sorted(out)
+
+    def seed_point(self) -> int:
+        """The grid point nearest the scenario's default state (the grid centre if it has no coordinates)."""
+        if self.default_coordinates is None:
+            return self.flat_of([n // 2 for n in self._shape])
+        # the distance is a sum over axes, so the nearest point is the nearest value on each axis
+        idx = []
+        for ax, vals, x in zip(self.axes, self._values, self.default_coordinates, strict=True):
+            d = vals - x
+            if ax.periodic:
+                d = (d + 180.0) % 360.0 - 180.0
+            idx.append(int(np.argmin(np.abs(d))))
+        return self.flat_of(idx)
+
+    def continuation_order(self) -> list[tuple[int, int | None]]:
+        """Every point once as ``(point, warm-start parent)``: breadth-first from :meth:`seed_point`
+        (parent ``None``) over :meth:`neighbours`, so each parent is an adjacent, earlier point."""
+        seed = self.seed_point()
+        order: list[tuple[int, int | None]] = [(seed, None)]
+        seen = {seed}
+        queue = deque([seed])
+        while queue:
+            p = queue.popleft()
+            for nb in self.neighbours(p):
+                if nb not in seen:
+                    seen.add(nb)
+                    order.append((nb, p))
+                    queue.append(nb)
+        return order
+
+
+def _minimal_rotation(a: Array, b: Array) -> Array:
+    """The smallest rotation taking unit ``a`` onto unit ``b`` (``a ≠ -b``)."""
+    axis = np.cross(a, b)
+    sin, cos = float(np.linalg.norm(axis)), float(a @ b)
+    if sin < 1e-15:
+        if cos > 0:
+            return np.eye(3)
+        raise ValueError("antiparallel vectors: the minimal rotation is not unique")
+    return axis_angle_to_matrix(axis / sin, math.atan2(sin, cos))

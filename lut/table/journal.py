@@ -1,0 +1,339 @@
+"""Crash-safe build journal: an append-only file of checksummed records, one per finished grid point.
+
+A build solves points for hours and must survive ``kill -9`` (or a power cut) at any moment, then
+resume. Every finished point is appended with ONE ``os.write`` of a self-contained frame followed by
+``os.fsync``; a frame torn by a crash mid-write fails its length/checksum test, is ignored on read and
+cut away before the next append. An exclusive ``flock`` (POSIX) keeps two builds from appending to the
+same journal at once; the kernel drops it when the process dies. The journal is created *under* that
+lock (``O_CREAT`` on the one path, then the lock, then the header), so of two builds starting at the
+same moment exactly one gets it and the other is refused; a journal that holds only the beginning of
+its own header (a crash while creating it) holds no records either and is started again. :func:`journal_status` tells a
+running build's journal from an interrupted one's.
+
+File format (version 1, all integers little-endian)::
+
+    file    := MAGIC frame(header) frame(record)*
+    MAGIC   := b"LUTGEN-JOURNAL\\x00\\x01"                       (16 bytes)
+    frame   := length:u64  digest:32 bytes  payload[length]
+               digest = SHA-256(length:u64 || payload)
+    payload := json_length:u32  json[json_length]  blob          (see encode_record)
+
+The header frame's payload is an encoded ``dict[str, str]`` (config hash etc.); a journal reopened with
+a different header raises :class:`~lut.table.store.TableError`. Frames are read in order up to the first
+incomplete or corrupt one; everything from there on is ignored (and truncated away when the journal
+is opened for appending) — those points are simply solved again.
+
+Record payload: ``json`` is UTF-8 JSON ``{"format": 1, "fields": [...]}`` with one entry per key, in
+the record's key order. A ``str`` value is stored in the JSON itself (``{"key", "type": "str",
+"value"}``); every number and array is stored as raw little-endian bytes in ``blob``
+(``{"key", "type", "dtype", "shape", "offset", "nbytes"}``, ``dtype`` a numpy type string such as
+``"<f8"``, ``offset`` relative to the start of ``blob``), so floats come back bit-identical. ``type``
+restores the Python type: ``"float"``/``"int"``/``"bool"`` (Python scalars, stored as ``<f8``/``<i8``/
+``|b1``), ``"npscalar"`` (a numpy scalar), ``"array"`` (an ``np.ndarray`` of bool, integer, float or
+complex dtype). Nothing else is accepted — no pickles.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import struct
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX
+    fcntl = None  # type: ignore[assignment]
+
+MAGIC = b"LUTGEN-JOURNAL\x00\x01"
+RECORD_FORMAT = 1
+_LEN = struct.Struct("<Q")
+_JSON_LEN = struct.Struct("<I")
+_DIGEST_SIZE = 32
+_FRAME_HEAD = _LEN.size + _DIGEST_SIZE
+_NUMERIC_KINDS = "biufc"
+
+
+def _table_error(message: str) -> Exception:
+    from lut.table.store import TableError  # store imports nothing from here; deferred to keep the modules independent
+
+    return TableError(message)
+
+
+# ---- record encoding ----------------------------------------------------------------------------
+
+
+def encode_record(record: dict[str, Any]) -> bytes:
+    """The payload bytes of ``record`` (``str`` keys → ``str``, numbers, numpy scalars or numeric arrays)."""
+    fields: list[dict[str, Any]] = []
+    blobs: list[bytes] = []
+    offset = 0
+    for key, value in record.items():
+        if not isinstance(key, str):
+            raise _table_error(f"journal record: key {key!r} is not a string")
+        if isinstance(value, str):
+            fields.append({"key": key, "type": "str", "value": str(value)})
+            continue
+        if isinstance(value, bool):
+            kind, arr = "bool", np.asarray(value, dtype=np.bool_)
+        elif isinstance(value, int):
+            if not -(2**63) <= value < 2**63:
+                raise _table_error(f"journal record: {key}: integer {value} does not fit in 64 bits")
+            kind, arr = "int", np.asarray(value, dtype="<i8")
+        elif isinstance(value, float):
+            kind, arr = "float", np.asarray(value, dtype="<f8")
+        elif isinstance(value, np.generic) and value.dtype.kind in _NUMERIC_KINDS:
+            kind, arr = "npscalar", np.asarray(value)
+        elif isinstance(value, np.ndarray) and value.dtype.kind in _NUMERIC_KINDS:
+            kind, arr = "array", value
+        else:
+            raise _table_error(f"journal record: {key}: cannot store a value of type {type(value).__name__}"
+                               + (f" (dtype {value.dtype})" if isinstance(value, np.ndarray | np.generic) else ""))
+        arr = np.asarray(arr, dtype=arr.dtype.newbyteorder("<"))  # (ascontiguousarray would make 0-d 1-d)
+        data = arr.tobytes(order="C")
+        fields.append({"key": key, "type": kind, "dtype": arr.dtype.str, "shape": list(arr.shape),
+                       "offset": offset, "nbytes": len(data)})
+        blobs.append(data)
+        offset += len(data)
+    head = json.dumps({"format": RECORD_FORMAT, "fields": fields}, separators=(",", ":")).encode("utf-8")
+    return _JSON_LEN.pack(len(head)) + head + b"".join(blobs)
+
+
+def decode_record(payload: bytes) -> dict[str, Any]:
+    """The record of an :func:`encode_record` payload (arrays are fresh, writable copies)."""
+    try:
+        (n,) = _JSON_LEN.unpack_from(payload, 0)
+        head = json.loads(payload[_JSON_LEN.size:_JSON_LEN.size + n].decode("utf-8"))
+        if head.get("format") != RECORD_FORMAT:
+            raise ValueError(f"record format {head.get('format')!r}, this lutgen reads {RECORD_FORMAT}")
+        blob = memoryview(payload)[_JSON_LEN.size + n:]
+        out: dict[str, Any] = {}
+        for f in head["fields"]:
+            if f["type"] == "str":
+                out[f["key"]] = f["value"]
+                continue
+            raw = blob[f["offset"]:f["offset"] + f["nbytes"]]
+            if len(raw) != f["nbytes"]:
+                raise ValueError(f"field {f['key']}: {len(raw)} of {f['nbytes']} bytes")
+            arr = np.frombuffer(raw, dtype=np.dtype(f["dtype"])).reshape(f["shape"]).copy()
+            kind = f["type"]
+            if kind == "array":
+                out[f["key"]] = arr
+            elif kind == "npscalar":
+                out[f["key"]] = arr[()]
+            elif kind in ("float", "int", "bool"):
+                out[f["key"]] = arr.item()
+            else:
+                raise ValueError(f"field {f['key']}: unknown type {kind!r}")
+        return out
+    except (ValueError, KeyError, TypeError, struct.error, UnicodeDecodeError) as exc:
+        raise _table_error(f"journal record cannot be decoded: {exc}") from None
+
+
+def encode_frame(payload: bytes) -> bytes:
+    """``length || SHA-256(length || payload) || payload``."""
+    length = _LEN.pack(len(payload))
+    return length + hashlib.sha256(length + payload).digest() + payload
+
+
+def read_frames(data: bytes, start: int) -> tuple[list[bytes], int]:
+    """The payloads of the intact frames of ``data`` from ``start``, and the offset where they end.
+
+    Reading stops at the first frame that is incomplete (torn write) or fails its checksum.
+    """
+    payloads: list[bytes] = []
+    pos = start
+    while pos + _FRAME_HEAD <= len(data):
+        length_bytes = data[pos:pos + _LEN.size]
+        (length,) = _LEN.unpack(length_bytes)
+        end = pos + _FRAME_HEAD + length
+        if end > len(data):
+            break
+        payload = data[pos + _FRAME_HEAD:end]
+        if hashlib.sha256(length_bytes + payload).digest() != data[pos + _LEN.size:pos + _FRAME_HEAD]:
+            break
+        payloads.append(payload)
+        pos = end
+    return payloads, pos
+
+
+# ---- the journal ----------------------------------------------------------------------------------
+
+
+def _fsync_dir(directory: Path) -> None:
+    """Make a rename in ``directory`` durable (no-op where directories cannot be opened)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:  # pragma: no cover - e.g. Windows
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover
+        pass
+    finally:
+        os.close(fd)
+
+
+def _header_digest(header: dict[str, str]) -> str:
+    return hashlib.sha256(json.dumps(header, sort_keys=True).encode("utf-8")).hexdigest()[:12]
+
+
+class JournalStatus(Enum):
+    """What is at a journal's path: nothing, a running build's journal, or an interrupted build's."""
+
+    ABSENT = "absent"
+    IN_USE = "in use"  # a running build holds its lock
+    INTERRUPTED = "interrupted"  # unlocked: its build stopped before the table was complete
+
+
+def journal_status(path: Path) -> JournalStatus:
+    """The :class:`JournalStatus` of ``path`` (probes the lock without taking it for longer than the probe)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return JournalStatus.ABSENT
+    try:
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                return JournalStatus.IN_USE
+        return JournalStatus.INTERRUPTED
+    finally:
+        os.close(fd)
+
+
+class Journal:
+    """An append-only, crash-safe journal of point records (see the module docstring for the format).
+
+    ``header`` identifies what the journal belongs to (config hash etc.); opening an existing journal
+    with a different header raises :class:`~lut.table.store.TableError`. A record must hold an int
+    ``"point"`` and a str ``"status"``; :meth:`records` returns the last record of every point.
+    ``ignored_bytes`` says how much of a torn tail was cut away on open; ``started`` is True when this
+    open wrote the header (a new journal), False when it continues an existing one.
+    """
+
+    def __init__(self, path: Path, header: dict[str, str]) -> None:
+        self.path = Path(path)
+        self.header = {str(k): str(v) for k, v in header.items()}
+        self.ignored_bytes = 0
+        self.started = False
+        self._records: dict[int, dict[str, Any]] = {}
+        self._fd: int | None = None
+        fd = self._open_locked()
+        try:
+            self._load(fd)
+        except BaseException:
+            os.close(fd)
+            raise
+        self._fd = fd
+
+    def _open_locked(self) -> int:
+        """A descriptor of the file now at ``path`` (created if missing), under an exclusive lock."""
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
+            if fcntl is not None:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    os.close(fd)
+                    raise _table_error(f"journal {self.path} is in use by another build (still running)") from None
+            try:
+                if os.stat(self.path).st_ino == os.fstat(fd).st_ino:
+                    return fd
+            except FileNotFoundError:
+                pass
+            os.close(fd)  # a finishing build removed or replaced the file between our open and lock: again
+
+    def _head(self) -> bytes:
+        """The bytes a journal with this header starts with."""
+        return MAGIC + encode_frame(encode_record(self.header))
+
+    def _start(self, fd: int) -> None:
+        """Write the header into an empty (or torn-while-created) journal, durably."""
+        os.ftruncate(fd, 0)
+        data = self._head()
+        if os.write(fd, data) != len(data):
+            raise OSError(f"short write to {self.path}")
+        os.fsync(fd)
+        _fsync_dir(self.path.parent)
+        self.started = True
+
+    def _load(self, fd: int) -> None:
+        size = os.fstat(fd).st_size
+        data = os.pread(fd, size, 0) if hasattr(os, "pread") else self.path.read_bytes()
+        if self._head().startswith(data):  # new, or torn while this same header was written: no records yet
+            self._start(fd)
+            return
+        if not data.startswith(MAGIC):
+            raise _table_error(f"{self.path} is not a lutgen journal (bad magic bytes)")
+        payloads, end = read_frames(data, len(MAGIC))
+        if not payloads:
+            raise _table_error(f"journal {self.path} is corrupt (no intact header); delete it to start over")
+        stored = decode_record(payloads[0])
+        if stored != self.header:
+            differ = sorted(k for k in stored.keys() | self.header.keys() if stored.get(k) != self.header.get(k))
+            raise _table_error(
+                f"journal {self.path} was written for a different config (hash {_header_digest(stored)}, this build "
+                f"{_header_digest(self.header)}; differs in {', '.join(differ)}): delete it to start over")
+        for payload in payloads[1:]:
+            rec = decode_record(payload)
+            self._records[int(rec["point"])] = rec
+        if end < size:  # a torn or corrupt tail: cut it away before anything is appended after it
+            self.ignored_bytes = size - end
+            os.ftruncate(fd, end)
+            os.fsync(fd)
+
+    def append(self, record: dict[str, Any]) -> None:
+        """Append ``record`` durably (one ``os.write`` of one frame, then ``os.fsync``)."""
+        if self._fd is None:
+            raise ValueError(f"journal {self.path} is closed")
+        point = record.get("point")
+        if isinstance(point, bool) or not isinstance(point, int | np.integer):
+            raise _table_error(f"journal record: 'point' must be an int, got {point!r}")
+        if not isinstance(record.get("status"), str):
+            raise _table_error(f"journal record for point {point}: 'status' must be a str, got "
+                               f"{record.get('status')!r}")
+        payload = encode_record(record)
+        frame = encode_frame(payload)
+        end = os.fstat(self._fd).st_size
+        try:
+            written = os.write(self._fd, frame)
+            if written != len(frame):
+                raise OSError(f"short write to {self.path}: {written} of {len(frame)} bytes")
+            os.fsync(self._fd)
+        except OSError:
+            with contextlib.suppress(OSError):  # leave no partial frame behind (e.g. disk full)
+                os.ftruncate(self._fd, end)
+            raise
+        self._records[int(point)] = decode_record(payload)
+
+    def records(self) -> dict[int, dict[str, Any]]:
+        """The last record of every point journaled so far (a fresh dict; records are decoded copies)."""
+        return dict(self._records)
+
+    def discard(self) -> None:
+        """Close and delete the journal (a build that stopped before its first record leaves nothing behind)."""
+        if self._fd is not None:
+            with contextlib.suppress(FileNotFoundError):
+                if os.stat(self.path).st_ino == os.fstat(self._fd).st_ino:
+                    self.path.unlink()
+        self.close()
+
+    def close(self) -> None:
+        """Release the file (and its lock). Idempotent."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> Journal:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
