@@ -17,13 +17,8 @@ from numpy.typing import NDArray
 from scipy.optimize import lsq_linear
 from scipy.spatial.transform import Rotation
 
-from planner.collision.scene_distances import (
-    CollisionBody,
-    CollisionScene,
-    PairDistance,
-    default_pairs,
-    distance_gradient,
-)
+from planner.collision.layout import CollisionBody, default_pairs
+from planner.collision.scene_distances import CollisionScene, PairDistance, distance_gradient
 from planner.model.rotation import axis_angle_to_matrix, skew
 from planner.model.shapes import Box, Capsule, PlacedShape, make_transform
 

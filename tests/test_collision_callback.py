@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from planner.collision.callback import SceneDistanceCallback, pose_vector
-from planner.collision.layout import TARGET_BODY, build_scene, world_poses
+from planner.collision.layout import TARGET_BODY
+from planner.collision.nlp_scene import build_scene, world_poses
 from planner.config.scenario import load_scenario
 from planner.model.robot import fk_function
 from planner.model.rotation import quat_to_matrix

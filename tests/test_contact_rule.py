@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from planner.collision.contact_rule import APPROACH, STABILIZATION, TRACKING, closed_backoff_m, required_clearance_m
-from planner.collision.layout import HANDLE_BODY, TARGET_BODY, build_scene, scene_layout
+from planner.collision.layout import HANDLE_BODY, TARGET_BODY, scene_layout
+from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import load_scenario
 from planner.nlp import constraint_backoff
 from planner.phases.approach import BLEND_CHECK_NODES, ApproachProblem

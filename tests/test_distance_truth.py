@@ -316,7 +316,8 @@ _PLACEMENT_B = poses(Rotation.from_rotvec([0.3, -0.2, 0.9]).as_matrix()[None], n
 
 def run_collision_scene(cs: CaseSet) -> EngineResult:
     """The NLP engine: one CollisionScene with a body pair per case, all pairs in one sweep."""
-    from planner.collision.scene_distances import CollisionBody, CollisionScene
+    from planner.collision.layout import CollisionBody
+    from planner.collision.scene_distances import CollisionScene
 
     T_bs_a = _PLACEMENT_A if cs.index % 2 else np.eye(4)
     T_bs_b = _PLACEMENT_B if cs.index % 2 else np.eye(4)
@@ -862,7 +863,7 @@ def oracle_pair_distance(bodies: dict, frames: dict[str, Array], a: str, b: str)
 @pytest.fixture(scope="module")
 def scene_oracle(scene_cases: SceneCases) -> tuple[tuple[tuple[str, str], ...], Array]:
     """The scene's pairs (with the gripper-handle pair) and the oracle's distance of each, per case (n, m)."""
-    from planner.collision.layout import build_scene
+    from planner.collision.nlp_scene import build_scene
 
     pairs = build_scene(scene_cases.scenario, gripper_handle=True).pairs
     bodies = scene_cases.body_shapes()
@@ -872,7 +873,7 @@ def scene_oracle(scene_cases: SceneCases) -> tuple[tuple[tuple[str, str], ...], 
 
 def test_real_scene_pairs_cover_every_chaser_body_against_target_and_handle(scene_cases: SceneCases) -> None:
     """The scene with the gripper-handle pair checks every chaser body against the target and the handle."""
-    from planner.collision.layout import build_scene
+    from planner.collision.nlp_scene import build_scene
 
     pairs = set(build_scene(scene_cases.scenario, gripper_handle=True).pairs)
     chaser = scene_cases.scenario.robot.body_names
@@ -883,7 +884,7 @@ def test_real_scene_pairs_cover_every_chaser_body_against_target_and_handle(scen
 def test_real_scene_collision_scene_distances_equal_oracle(scene_cases: SceneCases, scene_oracle: tuple) -> None:
     """The NLP scene (coal) gives every pair's exact distance (min over shape pairs) to 1e-6 m on the 90°
     lattice, at three target poses."""
-    from planner.collision.layout import build_scene
+    from planner.collision.nlp_scene import build_scene
 
     pairs, d_ref = scene_oracle
     scene = build_scene(scene_cases.scenario, gripper_handle=True)
@@ -896,7 +897,7 @@ def test_real_scene_collision_scene_witnesses_lie_on_the_reported_shapes(scene_c
                                                                         request: pytest.FixtureRequest) -> None:
     """In the real scene each pair's witness points lie on the surfaces of the shapes it names (1e-6 m), with
     ``p_b - p_a = d n`` (1e-9 m) and a unit normal."""
-    from planner.collision.layout import build_scene
+    from planner.collision.nlp_scene import build_scene
 
     if ("real_scene_witness", scene_cases.scenario.name) in KNOWN_DEFECTS:
         request.applymarker(pytest.mark.xfail(strict=True, reason=KNOWN_DEFECTS[("real_scene_witness",
@@ -947,7 +948,7 @@ OVERSCALE = 1.25  # the min_distance cost's geometry scaling (paper §5): arm li
 def test_real_scene_overscaled_arm_distances_equal_oracle(scene_cases: SceneCases) -> None:
     """With the arm links' shapes scaled by 1.25 (sizes, not positions; base and target unscaled), the NLP scene
     gives the oracle's distance of the scaled shapes to 1e-6 m."""
-    from planner.collision.layout import build_scene
+    from planner.collision.nlp_scene import build_scene
 
     scene = build_scene(scene_cases.scenario, scale=OVERSCALE, gripper_handle=True)
     arm = set(scene_cases.scenario.robot.body_names[1:])
@@ -973,7 +974,7 @@ def test_real_scene_base_to_link5_at_zero_joints_is_1_430_m() -> None:
     """At q = 0 in scenario II, base_link-link5 is 1.430 m (python-fcl said 1.809 m), for the oracle and every
     engine."""
     from planner.collision.closed_form import signed_distance as closed_form
-    from planner.collision.layout import build_scene
+    from planner.collision.nlp_scene import build_scene
     from planner.config.scenario import load_scenario
     from planner.verify.distance import shape_distance
     from planner.verify.kinematics import PinKinematics

@@ -19,7 +19,6 @@ from lut.output.plan_file import load_plan
 from planner.config.scenario import load_scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
-from planner.phases.approach_guess import target_motion
 from planner.phases.tracking import TrackingController, TrackingResult
 from planner.phases.tracking_profile import TRACKING_NODES
 
@@ -56,7 +55,7 @@ def tracking_start():
     i = int(np.argmin(np.abs(np.asarray(s["t"]) - t_start)))
     x_base = np.concatenate([s["base_position"][i], s["base_wxyz"][i]])
     state = TargetState(np.asarray(doc["target"]["attitude_wxyz"]), np.asarray(doc["target"]["omega_body_rad_s"]))
-    motion = target_motion(scenario, state, doc["phases"]["stabilization"][1] + 1.0)
+    motion = scenario.target.motion(state, doc["phases"]["stabilization"][1] + 1.0)
     controller = TrackingController(scenario, FreeFloatingModel(scenario.robot))
     # the posture the null space is pulled toward: the plan's own configurations at the tracking nodes
     t = np.asarray(s["t"])

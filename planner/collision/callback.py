@@ -3,7 +3,7 @@
 IPOPT needs the collision constraints (Eq. 19) and their first derivatives; the distance engine is not
 symbolic, so the distances enter the NLP through a :class:`casadi.Callback`. Its input is the world pose of
 every frame at every via point, ``[vec(R_world_frame) (9, column-major), p_world_frame (3)]`` per frame and
-point (a body moves with its frame, see :class:`~planner.collision.scene_distances.CollisionBody`); its output is every
+point (a body moves with its frame, see :class:`~planner.collision.layout.CollisionBody`); its output is every
 pair's distance at every point, point-major. One call sweeps all points at once (the engine is vectorised
 over poses). The Jacobian comes from the witness points (TrajOpt style): with the witness point a held
 fixed in body A (local coordinates ``a = R_Aᵀ (p_a − p_A)``) and n the unit normal, ``∂d/∂p_A = −n``,

@@ -1,4 +1,4 @@
-"""The collision scene of a scenario: chaser bodies, the target and its grasp handle (paper §4.4, §5).
+"""The collision scene's layout: which bodies, which shapes, which pairs (pure data, paper §4.4, §5).
 
 Bodies: the chaser's 8 bodies, ``target`` (the target's shapes but the handle) and ``handle`` (the shapes
 marked ``handle = true``), which moves with the target's frame. Pairs: all non-adjacent chaser pairs (21
@@ -7,23 +7,39 @@ clearance each pair must keep, phase by phase, is the handle-contact rule of :mo
 the stabilization's scene leaves out the one pair it exempts (gripper–handle: the gripper holds it).
 Overscaling (paper §5, Eq. 15 cost) applies to the arm links only: scaling the base box as well would
 make it swallow the shoulder and the target's neighbourhood, which says nothing about arm clearance.
+
+The layout is shared by the NLPs (:mod:`planner.collision.nlp_scene` hands it to their distance engine) and
+by verify (its own engine): both read the same specification, neither reads the other's engine.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-from numpy.typing import NDArray
-
-from planner.collision.scene_distances import CollisionBody, CollisionScene, default_pairs
-from planner.config.scenario import Scenario, TargetConfig
+from planner.config.scenario import TargetConfig
 from planner.model.robot import RobotModel
+from planner.model.shapes import PlacedShape
 
-Array = NDArray[np.float64]
 TARGET_BODY = "target"
 HANDLE_BODY = "handle"
+
+
+@dataclass(frozen=True)
+class CollisionBody:
+    """A rigid body of the collision model: shapes placed in the body frame (``T_body_shape``, m).
+
+    ``frame`` names the pose the body moves with (default: its own name); e.g. the target's grasp handle is
+    a body of its own, so that pairs can treat it apart, that moves with the target's frame.
+    """
+
+    name: str
+    shapes: tuple[PlacedShape, ...]
+    frame: str | None = None
+
+    @property
+    def frame_name(self) -> str:
+        return self.frame or self.name
 
 
 @dataclass(frozen=True)
@@ -36,6 +52,7 @@ class SceneLayout:
     arm_bodies: tuple[str, ...]  # the bodies overscaling enlarges
 
     def pair_names(self) -> list[str]:
+        """``"A-B"`` per pair, in pair order."""
         return [f"{a}-{b}" for a, b in self.pairs]
 
     def without_gripper_handle(self) -> SceneLayout:
@@ -65,25 +82,29 @@ def scene_layout(robot: RobotModel, target: TargetConfig) -> SceneLayout:
     return SceneLayout((*chaser, *target_bodies), tuple(pairs), gripper_handle, tuple(robot.body_names[1:]))
 
 
-def build_collision_scene(layout: SceneLayout, scale: float = 1.0) -> CollisionScene:
-    """The NLPs' collision scene of ``layout``; ``scale`` enlarges the arm links' shapes."""
-    return CollisionScene(layout.bodies, layout.pairs, scale=dict.fromkeys(layout.arm_bodies, scale))
+def default_pairs(chaser_bodies: Sequence[str], adjacent: Collection[tuple[str, str]],
+                  target_bodies: Sequence[str]) -> list[tuple[str, str]]:
+    """Collision pairs: all non-adjacent chaser body pairs, then every chaser body against every target body.
 
+    Adjacency is unordered. Chaser pairs are ``(chaser_bodies[i], chaser_bodies[j])`` with ``i < j``; target
+    pairs are ``(chaser, target)``, the target bodies in the given order, chaser-major.
+    With 8 chained chaser bodies (7 adjacent pairs) and 2 target bodies (the target and its handle):
+    28 - 7 + 16 = 37 pairs.
 
-def build_scene(scenario: Scenario, scale: float = 1.0, gripper_handle: bool = False) -> CollisionScene:
-    """The NLPs' collision scene of a scenario; the gripper–handle pair only when ``gripper_handle`` (approach)."""
-    layout = scene_layout(scenario.robot, scenario.target)
-    return build_collision_scene(layout if gripper_handle else layout.without_gripper_handle(), scale)
-
-
-def world_poses(robot: RobotModel, fk_out: Sequence, R_world_base: Array, p_world_base: Array,
-                T_world_target: Array) -> dict[str, Array]:
-    """4×4 world poses of every scene frame from ``fk_function`` outputs and the base pose."""
-    poses = {}
-    for i, name in enumerate(robot.body_names):
-        T = np.eye(4)
-        T[:3, :3] = R_world_base @ np.asarray(fk_out[2 * i])
-        T[:3, 3] = p_world_base + R_world_base @ np.asarray(fk_out[2 * i + 1]).ravel()
-        poses[name] = T
-    poses[TARGET_BODY] = T_world_target
-    return poses
+    Raises:
+        ValueError: duplicate names, a body both chaser and target, an adjacent pair naming an unknown body.
+    """
+    chaser = list(chaser_bodies)
+    target = list(target_bodies)
+    if len(set(chaser)) != len(chaser) or len(set(target)) != len(target):
+        raise ValueError("duplicate body names in default_pairs")
+    if set(chaser) & set(target):
+        raise ValueError(f"bodies both chaser and target: {sorted(set(chaser) & set(target))}")
+    adj = set()
+    for a, b in adjacent:
+        if a not in chaser or b not in chaser:
+            raise ValueError(f"adjacent pair ({a!r}, {b!r}) names a body not in chaser_bodies")
+        adj.add(frozenset((a, b)))
+    pairs = [(chaser[i], chaser[j]) for i in range(len(chaser)) for j in range(i + 1, len(chaser))
+             if frozenset((chaser[i], chaser[j])) not in adj]
+    return pairs + [(c, t) for c in chaser for t in target]

@@ -21,33 +21,17 @@ an engine of its own (:mod:`planner.verify.distance`), so an error in this one i
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planner.collision.closed_form import ShapeRows, signed_distances
+from planner.collision.layout import CollisionBody
 from planner.model.shapes import Box, Capsule, PlacedShape
 
 Array = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class CollisionBody:
-    """A rigid body of the collision model: shapes placed in the body frame (``T_body_shape``, m).
-
-    ``frame`` names the pose the body moves with (default: its own name); e.g. the target's grasp handle is
-    a body of its own, so that pairs can treat it apart, that moves with the target's frame.
-    """
-
-    name: str
-    shapes: tuple[PlacedShape, ...]
-    frame: str | None = None
-
-    @property
-    def frame_name(self) -> str:
-        return self.frame or self.name
 
 
 @dataclass(frozen=True)
@@ -268,31 +252,3 @@ def _pose(T_world_frame: Mapping[str, Array], frame: str, placed: PlacedShape) -
     except KeyError:
         raise KeyError(f"no pose given for collision frame {frame!r}") from None
     return T if np.array_equal(placed.T_body_shape, np.eye(4)) else T @ placed.T_body_shape
-
-
-def default_pairs(chaser_bodies: Sequence[str], adjacent: Collection[tuple[str, str]],
-                  target_bodies: Sequence[str]) -> list[tuple[str, str]]:
-    """Collision pairs: all non-adjacent chaser body pairs, then every chaser body against every target body.
-
-    Adjacency is unordered. Chaser pairs are ``(chaser_bodies[i], chaser_bodies[j])`` with ``i < j``; target
-    pairs are ``(chaser, target)``, the target bodies in the given order, chaser-major.
-    With 8 chained chaser bodies (7 adjacent pairs) and 2 target bodies (the target and its handle):
-    28 - 7 + 16 = 37 pairs.
-
-    Raises:
-        ValueError: duplicate names, a body both chaser and target, an adjacent pair naming an unknown body.
-    """
-    chaser = list(chaser_bodies)
-    target = list(target_bodies)
-    if len(set(chaser)) != len(chaser) or len(set(target)) != len(target):
-        raise ValueError("duplicate body names in default_pairs")
-    if set(chaser) & set(target):
-        raise ValueError(f"bodies both chaser and target: {sorted(set(chaser) & set(target))}")
-    adj = set()
-    for a, b in adjacent:
-        if a not in chaser or b not in chaser:
-            raise ValueError(f"adjacent pair ({a!r}, {b!r}) names a body not in chaser_bodies")
-        adj.add(frozenset((a, b)))
-    pairs = [(chaser[i], chaser[j]) for i in range(len(chaser)) for j in range(i + 1, len(chaser))
-             if frozenset((chaser[i], chaser[j])) not in adj]
-    return pairs + [(c, t) for c in chaser for t in target]

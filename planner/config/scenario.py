@@ -24,7 +24,7 @@ from planner.errors import ConfigError
 from planner.model.robot import RobotModel, load_robot
 from planner.model.rotation import matrix_to_quat, rpy_to_matrix
 from planner.model.shapes import Box, Capsule, PlacedShape, make_transform
-from planner.model.target import TargetState
+from planner.model.target import TargetBody, TargetMotion, TargetState
 
 Array = NDArray[np.float64]
 
@@ -226,6 +226,14 @@ class TargetConfig:
     shapes: tuple[PlacedShape, ...]
     handle_shapes: frozenset[str]  # shapes only the gripper may touch
     grasp: GraspConfig
+
+    def body(self) -> TargetBody:
+        """The target's mass properties and grasp frame, as the torque-free model takes them."""
+        return TargetBody(self.mass_kg, self.inertia_body_kg_m2, self.p_world_com, self.grasp.T_body_grasp)
+
+    def motion(self, state: TargetState, t_end_s: float) -> TargetMotion:
+        """Accurate torque-free motion of this target from the observed ``state`` (at t = 0) to ``t_end_s`` [s]."""
+        return TargetMotion(self.body(), state, t_end_s)
 
 
 def load_target(path: str | Path) -> TargetConfig:

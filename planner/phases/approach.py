@@ -26,7 +26,8 @@ from numpy.typing import NDArray
 
 from planner.collision.callback import SceneDistanceCallback, pose_vector
 from planner.collision.contact_rule import APPROACH, TRACKING, closed_backoff_m, required_clearance_m
-from planner.collision.layout import TARGET_BODY, SceneLayout, build_collision_scene, build_scene, scene_layout
+from planner.collision.layout import TARGET_BODY, SceneLayout, scene_layout
+from planner.collision.nlp_scene import build_collision_scene, build_scene
 from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel, quat_to_rotation_sym
 from planner.model.robot import fk_function

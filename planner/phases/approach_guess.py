@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planner.collision.layout import build_scene, world_poses
+from planner.collision.nlp_scene import build_scene, world_poses
 from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.robot import fk_function

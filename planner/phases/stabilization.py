@@ -35,7 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.collision.callback import SceneDistanceCallback, pose_vector
-from planner.collision.layout import TARGET_BODY, build_scene
+from planner.collision.layout import TARGET_BODY
+from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import Scenario
 from planner.model.compound import GEOMETRY_SIZE, GraspGeometry, grasp_geometry
 from planner.model.freefloating import (

@@ -62,7 +62,6 @@ from numpy.typing import NDArray
 from planner.collision.contact_rule import exemption_note
 from planner.collision.layout import scene_layout
 from planner.model.compound import compound_robot
-from planner.phases.approach_guess import target_motion
 from planner.verify.checks import (
     END_VELOCITY_TOL_RAD_S,
     FEASIBILITY_TOL,
@@ -161,7 +160,7 @@ def verify(plan, step_s: float = DEFAULT_STEP_S) -> VerifyReport:  # noqa: ANN00
             raise ValueError(f"no sample at t_grasp = {t_grasp:.6f} s (nearest {t[k]:.6f} s)")
     sel = select_samples(t, sorted({float(b) for span in plan.phases.values() for b in span}), step_s)
 
-    motion = target_motion(sc, plan.target_state, float(t[-1]) + 1.0)
+    motion = sc.target.motion(plan.target_state, float(t[-1]) + 1.0)
     T_ee_target = np.asarray(plan.grasp.T_ee_target, dtype=float)
     T_body_grasp = np.asarray(plan.T_body_grasp_used, dtype=float)
     chaser = PinKinematics(robot)

@@ -62,7 +62,8 @@ def kinematics(settings: Settings) -> dict[str, Any]:
 def collision_sweep(settings: Settings) -> dict[str, Any]:
     """Every pair of the approach's scene (37) at a random configuration: the NLPs' engine for one pose set and
     for the approach's 23 via points in one call, and verify's engine over 1000 samples."""
-    from planner.collision.layout import build_scene, scene_layout, world_poses
+    from planner.collision.layout import scene_layout
+    from planner.collision.nlp_scene import build_scene, world_poses
     from planner.model.robot import fk_function
     from planner.model.rotation import quat_to_matrix
     from planner.verify.collision import sweep_pairs
