@@ -23,7 +23,8 @@ from planner.model.compound import compound_robot
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.rotation import axis_angle_to_matrix
 from planner.model.target import TargetMotion, TargetState
-from planner.nlp.bspline import UniformCubicBSpline, approach_vertices, stabilization_vertices
+from planner.nlp.bspline import UniformCubicBSpline
+from planner.nlp.phase_spline import approach_vertices, stabilization_vertices
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import ReachScan, forget_last_scan, reach_scan, target_motion
 from planner.phases.stabilization import (

@@ -1,4 +1,4 @@
-"""Tests of planner.nlp.bspline: uniform cubic B-spline trajectories and the Eq. 23 / 24 parameter layouts."""
+"""Tests of planner.nlp.bspline and planner.nlp.phase_spline: B-spline trajectories, Eq. 23 / 24 layouts."""
 
 from __future__ import annotations
 
@@ -7,12 +7,11 @@ import numpy as np
 import pytest
 from scipy.interpolate import BSpline
 
-from planner.nlp.bspline import (
-    UniformCubicBSpline,
+from planner.nlp.bspline import UniformCubicBSpline, resample
+from planner.nlp.phase_spline import (
     approach_params_from_vertices,
     approach_vertices,
     fit_approach_params,
-    resample,
     stabilization_params_from_vertices,
     stabilization_vertices,
 )

@@ -7,8 +7,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-def manipulability_sym(J):  # noqa: ANN001, ANN201
-    """Eq. 14: ``sqrt(det(J Jᵀ))`` of the (6×7) generalized Jacobian (maximised)."""
+def manipulability_sym(J: ca.MX | ca.SX) -> ca.MX | ca.SX:
+    """Eq. 14: ``sqrt(det(J Jᵀ))`` of the generalized Jacobian ``(6, 7)`` (maximised)."""
     return ca.sqrt(ca.det(ca.mtimes(J, J.T)))
 
 
@@ -18,5 +18,5 @@ def manipulability(J: NDArray[np.float64]) -> float:
 
 
 def approach_energy(base_offset_m: NDArray[np.float64]) -> float:
-    """Eq. 16: ``‖θ_b(0)‖²`` (m²), the translation of the spacecraft approach maneuver."""
+    """Eq. 16: ``‖θ_b(0)‖²`` [m²] of the base offset ``(2,)`` [m] (the spacecraft approach manoeuvre)."""
     return float(np.dot(base_offset_m, base_offset_m))

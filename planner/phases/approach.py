@@ -34,7 +34,8 @@ from planner.model.robot import fk_function
 from planner.model.target import TargetState
 from planner.model.target_symbolic import prediction_function
 from planner.nlp import constraint_backoff
-from planner.nlp.bspline import UniformCubicBSpline, approach_vertices
+from planner.nlp.bspline import UniformCubicBSpline
+from planner.nlp.phase_spline import approach_vertices
 from planner.nlp.costs import manipulability_sym
 from planner.nlp.feasibility_stop import FeasibilityStop
 from planner.nlp.ipopt import ipopt_options, ipopt_solver

@@ -23,7 +23,8 @@ from planner.model.freefloating import FreeFloatingModel
 from planner.model.robot import fk_function
 from planner.model.rotation import axis_angle_to_matrix, quat_to_matrix
 from planner.model.target import TargetBody, TargetMotion, TargetState
-from planner.nlp.bspline import UniformCubicBSpline, fit_approach_params
+from planner.nlp.bspline import UniformCubicBSpline
+from planner.nlp.phase_spline import fit_approach_params
 from planner.nlp.costs import manipulability
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5

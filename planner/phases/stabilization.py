@@ -51,7 +51,8 @@ from planner.model.freefloating import (
 from planner.model.robot import RobotModel, fk_function
 from planner.model.rotation import quat_to_matrix
 from planner.nlp import constraint_backoff
-from planner.nlp.bspline import UniformCubicBSpline, stabilization_vertices
+from planner.nlp.bspline import UniformCubicBSpline
+from planner.nlp.phase_spline import stabilization_vertices
 from planner.nlp.compiled import compiled
 from planner.nlp.feasibility_stop import FeasibilityStop
 from planner.nlp.ipopt import ipopt_options, ipopt_solver
