@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from planner.errors import ConfigError, TargetStateError
+from planner.model.attitude import euler_rhs, propagate
 from planner.model.rotation import (
     axis_angle_to_matrix,
     matrix_to_quat,
@@ -13,7 +14,7 @@ from planner.model.rotation import (
     quat_to_matrix,
     rpy_to_matrix,
 )
-from planner.model.target import TargetBody, TargetMotion, TargetState, euler_rhs, propagate
+from planner.model.target import TargetBody, TargetMotion, TargetState
 
 INERTIA_TUMBLE_KG_M2 = np.diag([5000.0, 3000.0, 7000.0])  # x intermediate, y minor, z major
 OMEGA0_TUMBLE_RAD_S = np.deg2rad([2.0, -3.0, 1.5])

@@ -42,7 +42,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planner.config.limits import MAX_GRID_POINTS
-from planner.config.scenario import _read_toml, _Table, parse_toml
+from planner.config.toml_table import TomlTable as _Table
+from planner.config.toml_table import parse_toml
+from planner.config.toml_table import read_toml as _read_toml
 from planner.errors import ConfigError, TargetStateError
 from planner.model.rotation import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rpy_to_matrix
 from planner.model.target import TargetState

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
-from planner.config.scenario import TargetConfig
+from planner.config.target import TargetConfig
 from planner.model.robot import RobotModel
 from planner.model.shapes import PlacedShape
 
