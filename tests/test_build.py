@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.build.sweep import BuildOptions, journal_path, run_build
+from lut.build.existing_work import journal_path
+from lut.build.options import BuildOptions
+from lut.build.sweep import run_build
 from lut.table.store import Table
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -118,7 +120,8 @@ def test_raising_and_hanging_points_are_recorded_failed(grid_file, tmp_path, mon
 
 BUILD_SCRIPT = """
 import sys
-from lut.build.sweep import BuildOptions, run_build
+from lut.build.options import BuildOptions
+from lut.build.sweep import run_build
 run_build(sys.argv[1], sys.argv[2], BuildOptions(jobs=2, solver="{fake}", resume=True, progress=False))
 """
 

@@ -21,9 +21,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lut.build.sweep import BuildOptions, run_build
+from lut.build.options import BuildOptions
+from lut.build.sweep import run_build
 from lut.query.table_query import TableQuery
-from lut.table.records import PARAMETER_KEYS, parameters_from_record
+from lut.table.records import PARAMETER_KEYS
 from lut.table.store import Table
 from planner.phases.approach import ApproachSolution
 
@@ -117,21 +118,22 @@ def test_query_at_a_grid_point_reproduces_the_built_plan(table_query):
         result = tq.query(state, budget_s=1.0)  # no time to refine: the table alone must answer
         assert result.source == "interpolated" and result.corners_used == [point]
         assert result.report.feasible, result.report.violations
-        stored = tq.records[point]
-        np.testing.assert_allclose(np.min(result.report.min_distance_m), stored["costs/min_distance_m"], atol=1e-9)
+        stored = tq.points[point]
+        np.testing.assert_allclose(np.min(result.report.min_distance_m), stored.costs["min_distance_m"], atol=1e-9)
         np.testing.assert_allclose(np.abs(result.report.grasp_wrench[:, 3:]).max(),
-                                   stored["costs/peak_grasp_torque_nm"], atol=1e-9)
+                                   stored.costs["peak_grasp_torque_nm"], atol=1e-9)
 
 
 def test_query_between_grid_points_interpolates_consistent_corners(table_query):
     tq = table_query
     state = tq.grid.state_at([3.8, 90.0, 7.0])
-    rec, corners, source = tq.interpolate(state)
-    assert source == "interpolated" and len(corners) >= 2
+    found = tq.interpolate(state)
+    corners = found.corners
+    assert found.source == "interpolated" and len(corners) >= 2
     # the interpolated meeting time lies between the corners' (carried to this phase by the symmetry)
-    taus = [tq.records[c]["start_delay_s"] + tq._phase_shift(c, tq.grid.coordinates_of_state(state))
+    taus = [tq.points[c].parameters.approach.start_delay_s + tq.phase_shift_s(c, tq.grid.coordinates_of_state(state))
             for c in corners]
-    assert min(taus) - 1e-9 <= rec["start_delay_s"] <= max(taus) + 1e-9
+    assert min(taus) - 1e-9 <= found.parameters.approach.start_delay_s <= max(taus) + 1e-9
     result = tq.query(state, budget_s=1.0)
     assert set(result.latency_s) >= {"lookup_interpolate_s", "simulate_s", "verify_s", "total_s"}
     assert result.report.pair_count == 37
@@ -191,7 +193,7 @@ def test_tracking_rate_cap_scales_the_rates_and_the_feedback_still_meets_the_gra
 
     tq = table_query
     motion = tq.planner._motion(tq.grid.state(0))
-    approach = ApproachSolution.given(parameters_from_record(tq.records[0]).approach)
+    approach = ApproachSolution.given(tq.points[0].parameters.approach)
     free = tq.planner._approach_and_tracking(approach, motion)[1]
     cap = 0.9 * min(free.peak_rate_demand, tracking.RATE_CAP_FRACTION)
     monkeypatch.setattr(tracking, "RATE_CAP_FRACTION", cap)

@@ -9,7 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.table.grid import Axis, Grid, GridConfig, load_grid, load_grid_text, phase_time_shift_s
+from lut.table.grid import Grid
+from lut.table.grid_config import Axis, GridConfig, load_grid, load_grid_text
+from lut.table.symmetry import phase_time_shift_s
 from planner.config.scenario import load_scenario
 from planner.errors import ConfigError, TargetStateError
 from planner.model.rotation import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rpy_to_matrix

@@ -51,7 +51,8 @@ def _alive(pids: set[int]) -> set[int]:
 
 def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
     script = textwrap.dedent(f"""
-        from lut.build.sweep import BuildOptions, run_build
+        from lut.build.options import BuildOptions
+        from lut.build.sweep import run_build
         run_build({str(ROOT / "configs/grids/ci.toml")!r}, {str(tmp_path / "t.h5")!r},
                   BuildOptions(jobs=2, solver="tests.support.fake_solver:solve", progress=False))
     """)
@@ -62,7 +63,7 @@ def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
         helpers: set[int] = set()
         while time.monotonic() < deadline:  # the loky workers and, under them, the point processes
             helpers = _descendants(build.pid)
-            if sum("lut.build.point_worker" in Path(f"/proc/{p}/cmdline").read_text(errors="replace")
+            if sum("lut.solve.point_worker" in Path(f"/proc/{p}/cmdline").read_text(errors="replace")
                    for p in helpers if Path(f"/proc/{p}").exists()) >= 1:
                 break
             time.sleep(0.2)
@@ -92,6 +93,6 @@ def test_a_refine_timeout_names_the_query_budget(tmp_path, monkeypatch):
     monkeypatch.setenv("LUTGEN_FAKE_HANG", "-1")  # the refine solves "point" -1
     monkeypatch.setattr(lut.query.table_query, "DEFAULT_SOLVER", "tests.support.fake_solver:solve")
     tq = TableQuery(table)
-    rec = tq._refine(tq.grid.state(0), None, budget_s=1.0)
-    assert rec["status"] == "failed"
-    assert "--budget-s" in rec["failure_reason"] and "--point-timeout" not in rec["failure_reason"]
+    result = tq._refine(tq.grid.state(0), None, budget_s=1.0)
+    assert result.status == "failed"
+    assert "--budget-s" in result.failure_reason and "--point-timeout" not in result.failure_reason

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from lut.build.sweep import BuildOptions, journal_path, run_build
+from lut.build.existing_work import journal_path
+from lut.build.options import BuildOptions
+from lut.build.sweep import run_build
 from lut.table.journal import Journal, JournalStatus, journal_status
 from tests.support.cli import CI_GRID, ROOT, assert_one_line_error, lutgen_in_process, write_fake_table
 

@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from lut.build.point_worker import solve_point
+from lut.solve.point_worker import solve_point
 from lut.table.records import PARAMETER_KEYS
 from planner.config.scenario import load_scenario
 from planner.model.target import TargetState

@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
-from lut.query.table_query import parameter_shapes
+from lut.query.table_checks import parameter_shapes
 from lut.table.store import Table
 from planner.config.scenario import load_scenario
 from tests.support.cli import ON_GRID_STATE, ROOT, assert_one_line_error, lutgen, lutgen_in_process, write_fake_table

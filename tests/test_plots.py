@@ -126,7 +126,9 @@ def test_load_plan_rejects_missing_and_non_json(tmp_path):
 
 
 def _table(path: Path, axes: list[tuple[str, np.ndarray]], torque: bool = True):
-    from lut.table.store import Table, model_hash, write_table
+    from lut.table.model_identity import model_hash
+    from lut.table.store import Table
+    from lut.table.table_writer import write_table
 
     n = int(np.prod([len(v) for _, v in axes]))
     rng = np.random.default_rng(1)

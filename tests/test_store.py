@@ -13,9 +13,12 @@ import h5py
 import numpy as np
 import pytest
 
-from lut.table import store
+from lut.table import table_writer
 from lut.table.journal import MAGIC, Journal
-from lut.table.store import SCHEMA_VERSION, STATUS_CODES, Table, TableError, model_hash, write_table
+from lut.table.model_identity import model_hash
+from lut.table.schema import SCHEMA_VERSION, STATUS_CODES, TableError
+from lut.table.store import Table
+from lut.table.table_writer import write_table
 
 ROOT = Path(__file__).resolve().parents[1]
 HEADER = {"model_hash": "0123abcd" * 8, "grid_text": "name = 'g'\n"}
@@ -278,7 +281,7 @@ def test_write_table_never_leaves_a_half_written_table(tmp_path, monkeypatch):
     def fail(_path):
         raise OSError("disk on fire")
 
-    monkeypatch.setattr(store, "_fsync_file", fail)
+    monkeypatch.setattr(table_writer, "fsync_file", fail)
     with pytest.raises(OSError, match="disk on fire"):
         _write(path, {0: _record(0, "infeasible")})
     assert path.read_bytes() == before and not path.with_name("t.h5.tmp").exists()

@@ -309,7 +309,8 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
     Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
     An existing OUT is never overwritten without --force.
     """
-    from lut.build.sweep import BuildOptions, BuildOutcome, run_build
+    from lut.build.options import BuildOptions, BuildOutcome
+    from lut.build.sweep import run_build
 
     options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
                            resume=resume, force=force, progress=not no_progress)
@@ -428,8 +429,8 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     lat = result.latency_s
     click.echo(f"source {result.source} (corners {result.corners_used}); table load {tq.load_time_s:.2f} s; "
                + ", ".join(f"{k[:-2]} {v * 1e3:.1f} ms" for k, v in lat.items()))
-    if tq.refine_failure:
-        click.echo(f"refine did not finish: {tq.refine_failure}", err=True)
+    if result.refine_failure:
+        click.echo(f"refine did not finish: {result.refine_failure}", err=True)
     if out_path:
         write_json(out_path, plan_document(result.plan, result.report))
         click.echo(f"wrote {out_path}")

@@ -1,9 +1,9 @@
 """Ends a helper process when the process that started it dies, so a killed build leaves nothing running.
 
 A build's loky workers wait up to 300 s for work before they exit, and a point's solver process runs
-until its own time limit (``--point-timeout``, 900 s by default): after ``kill -9`` of a build both went
-on for minutes. A daemon thread polls the parent's pid; when the process is orphaned (re-parented to
-init or a subreaper) it exits at once, and its own children, orphaned in turn, follow.
+until its own time limit (``--point-timeout``, 900 s by default): without this, both would outlive a
+``kill -9`` of the build by minutes. A daemon thread polls the parent's pid; when the process is orphaned
+(re-parented to init or a subreaper) it exits at once, and its own children, orphaned in turn, follow.
 """
 
 from __future__ import annotations

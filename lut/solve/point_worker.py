@@ -1,4 +1,4 @@
-"""Solve one grid point in its own process: ``python -m lut.build.point_worker SOLVER IN.npz OUT.npz [PARENT_PID]``.
+"""Solve one target state in its own process: ``python -m lut.solve.point_worker SOLVER IN.npz OUT.npz [PARENT_PID]``.
 
 A build runs every point in a child process so that a point that exceeds its time limit can be
 killed, and a point that crashes (segfault, out of memory) takes down only itself: both are recorded
@@ -6,8 +6,9 @@ as failed with the reason and the build goes on. Inputs and outputs are ``.npz``
 ``allow_pickle=False``; the output is written atomically (temp + rename).
 
 ``SOLVER`` is ``module:function`` with the signature of :func:`solve_point` (tests substitute a fast
-stand-in; the product always uses this module's own). ``PARENT_PID``, the process that started this
-one, makes it end when that process dies (:mod:`lut.build.parent_watch`).
+stand-in; the product always uses this module's own): it gets the warm start typed and returns the
+point's flat record (:mod:`lut.table.records`), which is what goes into OUT.npz. ``PARENT_PID``, the
+process that started this one, makes it end when that process dies (:mod:`lut.solve.parent_watch`).
 """
 
 from __future__ import annotations
@@ -16,29 +17,63 @@ import importlib
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from lut.build.parent_watch import exit_with_parent
-from lut.table.records import Record, failed_record, out_of_reach_record, parameters_from_record, record_from_plan
+from lut.solve.parent_watch import exit_with_parent
+from lut.table.records import (
+    Record,
+    failed_result,
+    out_of_reach_result,
+    parameters_from_fields,
+    result_from_plan,
+    to_record,
+)
+from planner.plan_parameters import PlanParameters
 
-_PLANNERS: dict[str, Any] = {}
+if TYPE_CHECKING:
+    from planner.plan import Planner
+
+WARM_PREFIX = "warm/"  # the warm start's parameter fields in IN.npz
+_PLANNERS: dict[str, Planner] = {}
 
 
-def solve_point(scenario_path: str, point: int, attitude_wxyz: np.ndarray, omega_body_rad_s: np.ndarray,
-                warm: Record | None, warm_shift_s: float, max_wall_s: float | None = None) -> Record:
-    """Plan and verify one target state; warm-started from a neighbour's record when given.
+def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
+                omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
+                max_wall_s: float | None = None) -> Record:
+    """Plan and verify one target state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]); warm-started
+    from a neighbour's parameters, shifted in time by ``warm_shift_s`` [s], when given.
 
-    ``max_wall_s`` (s) lowers the scenario's per-NLP wall-time limit (a query's refine inside its budget).
+    ``max_wall_s`` [s] lowers the scenario's per-NLP wall-time limit (a query's refine inside its budget).
     """
-    from dataclasses import replace
-
-    from planner.config.scenario import load_scenario
     from planner.model.target import TargetState
-    from planner.plan import OutOfReach, Planner
+    from planner.plan import OutOfReach
     from planner.verify.verifier import verify
+
+    planner = _planner(scenario_path, max_wall_s)
+    state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
+    warm_start = None
+    if warm is not None:
+        rate = float(np.linalg.norm(omega_body_rad_s))
+        period = 2 * np.pi / rate if rate > 0 else None
+        warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.max_start_delay_s)
+    t0 = time.perf_counter()
+    try:
+        plan = planner.plan(state, warm_start)
+    except OutOfReach as exc:
+        return to_record(out_of_reach_result(point, str(exc), time.perf_counter() - t0))
+    result = result_from_plan(point, plan, verify(plan))
+    return to_record(replace(result, solve_time_s=time.perf_counter() - t0))
+
+
+def _planner(scenario_path: str, max_wall_s: float | None) -> Planner:
+    """The planner of ``scenario_path`` (built once per process and wall-time limit [s])."""
+    from planner.config.scenario import load_scenario
+    from planner.plan import Planner
 
     key = f"{scenario_path}|{max_wall_s}"
     if key not in _PLANNERS:
@@ -46,23 +81,7 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: np.ndarray, omega
         if max_wall_s is not None:
             sc = replace(sc, solver=replace(sc.solver, max_wall_s=min(sc.solver.max_wall_s, max_wall_s)))
         _PLANNERS[key] = Planner(sc)
-    planner = _PLANNERS[key]
-    state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
-    warm_start = None
-    if warm is not None:
-        rate = float(np.linalg.norm(omega_body_rad_s))
-        period = 2 * np.pi / rate if rate > 0 else None
-        max_delay_s = planner.scenario.phases.max_start_delay_s
-        warm_start = parameters_from_record(warm).shifted_in_time(warm_shift_s, period, max_delay_s)
-    t0 = time.perf_counter()
-    try:
-        plan = planner.plan(state, warm_start)
-    except OutOfReach as exc:
-        return out_of_reach_record(point, str(exc), time.perf_counter() - t0)
-    report = verify(plan)
-    rec = record_from_plan(point, plan, report)
-    rec["solve_time_s"] = time.perf_counter() - t0
-    return rec
+    return _PLANNERS[key]
 
 
 def save_npz(path: Path, data: dict[str, Any]) -> None:
@@ -88,14 +107,14 @@ def main(argv: list[str]) -> int:
     module, _, name = solver_spec.partition(":")
     solver = getattr(importlib.import_module(module), name)
     args = load_npz(Path(in_path))
-    warm = {k[5:]: v for k, v in args.items() if k.startswith("warm/")} or None
+    warm = parameters_from_fields({k[len(WARM_PREFIX):]: v for k, v in args.items() if k.startswith(WARM_PREFIX)})
     point = int(args["point"])
     extra = {"max_wall_s": float(args["max_wall_s"])} if "max_wall_s" in args else {}
     try:
         rec = solver(str(args["scenario_path"]), point, args["attitude_wxyz"], args["omega_body_rad_s"], warm,
                      float(args["warm_shift_s"]), **extra)
     except Exception as exc:  # noqa: BLE001 - a failure of this point only: recorded, the build goes on
-        rec = failed_record(point, f"{type(exc).__name__}: {exc}".splitlines()[0])
+        rec = to_record(failed_result(point, f"{type(exc).__name__}: {exc}".splitlines()[0]))
     save_npz(Path(out_path), rec)
     return 0
 

@@ -1,10 +1,7 @@
-"""The look-up table's grid over the target's observed state at t = 0 (DESIGN §6).
+"""The look-up table's grid over the target's observed state at t = 0: points ↔ states, cells, continuation.
 
-A grid config (TOML, see ``configs/grids/*.toml``) names a scenario, a kind and axes
-``{name, min, max, count}``; every axis the config omits is fixed (a single value) at the scenario
-default state's coordinate. Axis values are in degrees (``_deg``) and degrees per second (``_deg_s``).
-The grid's axes are always *all* axes of its kind, in the canonical order of :data:`AXIS_NAMES`;
-points are numbered in C order (the last axis varies fastest).
+The grid's axes are always *all* axes of its kind (:data:`lut.table.grid_config.AXIS_NAMES`, in that order;
+the axes a config omits hold one value), points are numbered in C order (the last axis varies fastest).
 
 Conventions. World = the orbital frame O (the orbital plane is x–z). ``R(v, a)`` is the right-handed
 rotation by ``a`` about unit ``v``.
@@ -22,7 +19,7 @@ rotation by ``a`` about unit ``v``.
   exactly ``(4, 90, 0)``. Scenario I's default spins about the orbit normal y, which is not in this
   family: a flat-spin grid over it must give all three axes.
 * Symmetry: the state at phase φ is the state at φ₀ advanced by ``(φ - φ₀) / r``
-  (:func:`phase_time_shift_s`), so the phase axis is periodic (360° wraps) and may be coarse.
+  (:mod:`lut.table.symmetry`), so the phase axis is periodic (360° wraps) and may be coarse.
 
 **tumble** — ``omega_x/y/z_deg_s`` are the body rates ``ω_body``; ``roll_deg``, ``pitch_deg``, ``yaw_deg``
 the initial attitude, URDF convention ``R_world_body = Rz(yaw) Ry(pitch) Rx(roll)``; pitch must stay
@@ -33,178 +30,24 @@ from __future__ import annotations
 
 import itertools
 import math
-import os
 from collections import deque
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planner.config.limits import MAX_GRID_POINTS
-from planner.config.toml_table import TomlTable as _Table
-from planner.config.toml_table import parse_toml
-from planner.config.toml_table import read_toml as _read_toml
+from lut.table.grid_config import ANGLE_AXES, AXIS_NAMES, PHASE_AXIS, Axis, GridConfig
+from lut.table.symmetry import start_delay_shift_s
 from planner.errors import ConfigError, TargetStateError
 from planner.model.rotation import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rpy_to_matrix
 from planner.model.target import TargetState
 
 Array = NDArray[np.float64]
-
-KINDS = ("flat_spin", "tumble")
-AXIS_NAMES: dict[str, tuple[str, ...]] = {
-    "flat_spin": ("spin_rate_deg_s", "spin_axis_angle_deg", "spin_phase_deg"),
-    "tumble": ("omega_x_deg_s", "omega_y_deg_s", "omega_z_deg_s", "roll_deg", "pitch_deg", "yaw_deg"),
-}
-PHASE_AXIS = "spin_phase_deg"
-PERIODIC_AXES = frozenset({PHASE_AXIS})  # 360° is the same state as 0°
-# angles whose value is only defined modulo 360: a state's coordinate is taken in the axis' window
-_ANGLE_AXES = frozenset({"spin_axis_angle_deg", "spin_phase_deg", "roll_deg", "yaw_deg"})
+RATE_AXIS = "spin_rate_deg_s"
 # a state is a flat spin about the major axis when ω and s are this close (rad) to the family
 FLAT_SPIN_TOL_RAD = 1e-6
 # coordinates (deg or deg/s) this close to a grid bound or a fixed axis value count as on it
 COORD_TOL = 1e-6
-
-
-# ----------------------------------------------------------------------------------------------------
-# Config
-
-
-@dataclass(frozen=True)
-class Axis:
-    """One grid axis: ``count`` evenly spaced values from ``min`` to ``max`` (count 1: ``min == max``)."""
-
-    name: str
-    min: float
-    max: float
-    count: int
-
-    def values(self) -> Array:
-        if self.count == 1:
-            return np.array([float(self.min)])
-        return np.linspace(self.min, self.max, self.count)
-
-    @property
-    def step(self) -> float:
-        """Spacing of the values (0 for a single value)."""
-        return 0.0 if self.count == 1 else (self.max - self.min) / (self.count - 1)
-
-    @property
-    def periodic(self) -> bool:
-        return self.name in PERIODIC_AXES
-
-
-@dataclass(frozen=True)
-class GridConfig:
-    """A validated grid config; ``axes`` as the file gives them (omitted axes are added by :class:`Grid`)."""
-
-    source: str
-    text: str
-    name: str
-    scenario_path: Path
-    kind: str
-    axes: tuple[Axis, ...]
-
-
-def load_grid(path: str | Path) -> GridConfig:
-    """Read and validate a grid config TOML file; its ``scenario`` is relative to the file's folder."""
-    path = Path(path)
-    data, text = _read_toml(path)
-    return _parse_grid(data, text, str(path), path.parent, None)
-
-
-def load_grid_text(text: str, source: str, scenario_path: str | Path | None = None) -> GridConfig:
-    """Validate grid config ``text`` (e.g. stored in a table); ``source`` names it in errors.
-
-    ``scenario_path`` overrides the config's ``scenario`` field (which is still validated); without
-    it, a relative ``scenario`` is taken relative to the folder of ``source``.
-    """
-    data = parse_toml(text, source)
-    override = None if scenario_path is None else Path(scenario_path)
-    return _parse_grid(data, text, source, Path(source).parent, override)
-
-
-def _parse_grid(data: dict, text: str, source: str, base_dir: Path, scenario_override: Path | None) -> GridConfig:
-    t = _Table(data, source)
-    name = t.string("name")
-    if not name.strip():
-        raise t.error("name", "must not be empty")
-    scenario = t.string("scenario")
-    if scenario_override is not None:
-        scenario_path = scenario_override
-    else:
-        scenario_path = Path(os.path.normpath((base_dir / scenario).absolute()))
-        if not scenario_path.is_file():
-            raise t.error("scenario", f"file not found: {scenario_path}")
-    kind = t.string("kind", choices=KINDS)
-    allowed = AXIS_NAMES[kind]
-    axes: list[Axis] = []
-    seen: dict[str, str] = {}
-    for a in t.tables("axes"):
-        axis_name = a.string("name")
-        if axis_name not in allowed:
-            raise a.error("name", f"unknown axis {axis_name!r} for kind {kind!r}; expected one of {', '.join(allowed)}")
-        if axis_name in seen:
-            raise a.error("name", f"duplicate axis {axis_name!r} (also {seen[axis_name]})")
-        seen[axis_name] = a.field("name")
-        lo = a.number("min")
-        hi = a.number("max")
-        count = a.number("count", integer=True)
-        a.finish()
-        axes.append(_check_axis(a, Axis(axis_name, lo, hi, int(count))))
-    t.finish()
-    n_points = math.prod(ax.count for ax in axes)
-    if n_points > MAX_GRID_POINTS:
-        raise t.error("axes", f"the grid has {n_points} points, more than {MAX_GRID_POINTS} (sanity limit): "
-                      "check the counts")
-    return GridConfig(source, text, name, scenario_path, kind, tuple(axes))
-
-
-def _check_axis(a: _Table, axis: Axis) -> Axis:
-    if axis.count < 1:
-        raise a.error("count", f"must be >= 1, got {axis.count}")
-    if axis.min > axis.max:
-        raise a.error("max", f"must be >= min ({axis.min:g}), got {axis.max:g}")
-    if axis.count == 1 and axis.min != axis.max:
-        raise a.error("count", f"count = 1 needs min == max, got min {axis.min:g}, max {axis.max:g}")
-    if axis.count > 1 and axis.min == axis.max:
-        raise a.error("count", f"count = {axis.count} needs max > min (the points would coincide)")
-    if axis.name == "spin_rate_deg_s" and axis.min <= 0:
-        raise a.error("min", f"a flat spin needs a spin rate > 0, got {axis.min:g}")
-    if axis.name in _ANGLE_AXES and axis.max - axis.min >= 360:
-        raise a.error("max", f"max - min must be < 360 (an angle {360:g}° away is the same state), "
-                             f"got {axis.max - axis.min:g}")
-    if axis.name == "pitch_deg":
-        for key, value in (("min", axis.min), ("max", axis.max)):
-            if not -90 < value < 90:
-                raise a.error(key, f"pitch must be inside (-90, 90) (roll-pitch-yaw is singular at ±90°), "
-                                   f"got {value:g}")
-    return axis
-
-
-# ----------------------------------------------------------------------------------------------------
-# Symmetry
-
-
-def phase_time_shift_s(phase_from_deg: float, phase_to_deg: float, rate_deg_s: float) -> float:
-    """Time (s) a flat spin at ``phase_from_deg`` takes to reach ``phase_to_deg`` (mod 360).
-
-    The smallest non-negative shift: ``((to - from) mod 360) / rate``, in ``[0, 360 / rate)``; a
-    difference within 1e-9° of a full turn counts as 0. ``rate_deg_s`` must be finite and > 0.
-    """
-    rate = float(rate_deg_s)
-    if not (math.isfinite(rate) and rate > 0):
-        raise ValueError(f"rate_deg_s must be finite and > 0, got {rate_deg_s!r}")
-    d = (float(phase_to_deg) - float(phase_from_deg)) % 360.0
-    if not math.isfinite(d):
-        raise ValueError(f"phases must be finite, got {phase_from_deg!r}, {phase_to_deg!r}")
-    if d > 360.0 - 1e-9:
-        d = 0.0
-    return d / rate
-
-
-# ----------------------------------------------------------------------------------------------------
-# Grid
 
 
 @dataclass
@@ -386,7 +229,7 @@ class Grid:
         for i, ax in enumerate(self.axes):
             if ax.periodic:
                 c[i] = ax.min + ((c[i] - ax.min + COORD_TOL) % 360.0) - COORD_TOL
-            elif ax.name in _ANGLE_AXES:
+            elif ax.name in ANGLE_AXES:
                 centre = 0.5 * (ax.min + ax.max)
                 c[i] += 360.0 * round((centre - c[i]) / 360.0)
         return c
@@ -436,6 +279,17 @@ class Grid:
             weights.append(math.prod(w for _, w, _ in combo))
             corner_coords.append([x for _, _, x in combo])
         return Cell(corners, np.array(weights), c, np.array(corner_coords))
+
+    def start_delay_shift_s(self, from_coords: ArrayLike, to_coords: ArrayLike, *, forward_turn: bool = False) -> float:
+        """The start-delay shift [s] carrying a plan made at ``from_coords`` to ``to_coords`` (each ``(n_axes,)``)
+        by the flat-spin symmetry (:func:`lut.table.symmetry.start_delay_shift_s`; 0 on a grid without a phase
+        axis). The rate is ``to_coords``'."""
+        names = self.axis_names
+        if PHASE_AXIS not in names:
+            return 0.0
+        i = names.index(PHASE_AXIS)
+        return start_delay_shift_s(from_coords[i], to_coords[i], to_coords[names.index(RATE_AXIS)],
+                                   forward_turn=forward_turn)
 
     def normalised_distance(self, a: ArrayLike, b: ArrayLike) -> float:
         """Distance between coordinates in grid steps (axis by axis; phase circular; 1 unit on fixed axes)."""

@@ -19,7 +19,7 @@ File format (version 1, all integers little-endian)::
     payload := json_length:u32  json[json_length]  blob          (see encode_record)
 
 The header frame's payload is an encoded ``dict[str, str]`` (config hash etc.); a journal reopened with
-a different header raises :class:`~lut.table.store.TableError`. Frames are read in order up to the first
+a different header raises :class:`~lut.table.schema.TableError`. Frames are read in order up to the first
 incomplete or corrupt one; everything from there on is ignored (and truncated away when the journal
 is opened for appending) — those points are simply solved again.
 
@@ -46,6 +46,9 @@ from typing import Any
 
 import numpy as np
 
+from lut.table.durable import fsync_dir
+from lut.table.schema import TableError
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX
@@ -60,12 +63,6 @@ _FRAME_HEAD = _LEN.size + _DIGEST_SIZE
 _NUMERIC_KINDS = "biufc"
 
 
-def _table_error(message: str) -> Exception:
-    from lut.table.store import TableError  # store imports nothing from here; deferred to keep the modules independent
-
-    return TableError(message)
-
-
 # ---- record encoding ----------------------------------------------------------------------------
 
 
@@ -76,7 +73,7 @@ def encode_record(record: dict[str, Any]) -> bytes:
     offset = 0
     for key, value in record.items():
         if not isinstance(key, str):
-            raise _table_error(f"journal record: key {key!r} is not a string")
+            raise TableError(f"journal record: key {key!r} is not a string")
         if isinstance(value, str):
             fields.append({"key": key, "type": "str", "value": str(value)})
             continue
@@ -84,7 +81,7 @@ def encode_record(record: dict[str, Any]) -> bytes:
             kind, arr = "bool", np.asarray(value, dtype=np.bool_)
         elif isinstance(value, int):
             if not -(2**63) <= value < 2**63:
-                raise _table_error(f"journal record: {key}: integer {value} does not fit in 64 bits")
+                raise TableError(f"journal record: {key}: integer {value} does not fit in 64 bits")
             kind, arr = "int", np.asarray(value, dtype="<i8")
         elif isinstance(value, float):
             kind, arr = "float", np.asarray(value, dtype="<f8")
@@ -93,7 +90,7 @@ def encode_record(record: dict[str, Any]) -> bytes:
         elif isinstance(value, np.ndarray) and value.dtype.kind in _NUMERIC_KINDS:
             kind, arr = "array", value
         else:
-            raise _table_error(f"journal record: {key}: cannot store a value of type {type(value).__name__}"
+            raise TableError(f"journal record: {key}: cannot store a value of type {type(value).__name__}"
                                + (f" (dtype {value.dtype})" if isinstance(value, np.ndarray | np.generic) else ""))
         arr = np.asarray(arr, dtype=arr.dtype.newbyteorder("<"))  # (ascontiguousarray would make 0-d 1-d)
         data = arr.tobytes(order="C")
@@ -133,7 +130,7 @@ def decode_record(payload: bytes) -> dict[str, Any]:
                 raise ValueError(f"field {f['key']}: unknown type {kind!r}")
         return out
     except (ValueError, KeyError, TypeError, struct.error, UnicodeDecodeError) as exc:
-        raise _table_error(f"journal record cannot be decoded: {exc}") from None
+        raise TableError(f"journal record cannot be decoded: {exc}") from None
 
 
 def encode_frame(payload: bytes) -> bytes:
@@ -164,20 +161,6 @@ def read_frames(data: bytes, start: int) -> tuple[list[bytes], int]:
 
 
 # ---- the journal ----------------------------------------------------------------------------------
-
-
-def _fsync_dir(directory: Path) -> None:
-    """Make a rename in ``directory`` durable (no-op where directories cannot be opened)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:  # pragma: no cover - e.g. Windows
-        return
-    try:
-        os.fsync(fd)
-    except OSError:  # pragma: no cover
-        pass
-    finally:
-        os.close(fd)
 
 
 def _header_digest(header: dict[str, str]) -> str:
@@ -213,7 +196,7 @@ class Journal:
     """An append-only, crash-safe journal of point records (see the module docstring for the format).
 
     ``header`` identifies what the journal belongs to (config hash etc.); opening an existing journal
-    with a different header raises :class:`~lut.table.store.TableError`. A record must hold an int
+    with a different header raises :class:`~lut.table.schema.TableError`. A record must hold an int
     ``"point"`` and a str ``"status"``; :meth:`records` returns the last record of every point.
     ``ignored_bytes`` says how much of a torn tail was cut away on open; ``started`` is True when this
     open wrote the header (a new journal), False when it continues an existing one.
@@ -243,7 +226,7 @@ class Journal:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except BlockingIOError:
                     os.close(fd)
-                    raise _table_error(f"journal {self.path} is in use by another build (still running)") from None
+                    raise TableError(f"journal {self.path} is in use by another build (still running)") from None
             try:
                 if os.stat(self.path).st_ino == os.fstat(fd).st_ino:
                     return fd
@@ -262,7 +245,7 @@ class Journal:
         if os.write(fd, data) != len(data):
             raise OSError(f"short write to {self.path}")
         os.fsync(fd)
-        _fsync_dir(self.path.parent)
+        fsync_dir(self.path.parent)
         self.started = True
 
     def _load(self, fd: int) -> None:
@@ -272,14 +255,14 @@ class Journal:
             self._start(fd)
             return
         if not data.startswith(MAGIC):
-            raise _table_error(f"{self.path} is not a lutgen journal (bad magic bytes)")
+            raise TableError(f"{self.path} is not a lutgen journal (bad magic bytes)")
         payloads, end = read_frames(data, len(MAGIC))
         if not payloads:
-            raise _table_error(f"journal {self.path} is corrupt (no intact header); delete it to start over")
+            raise TableError(f"journal {self.path} is corrupt (no intact header); delete it to start over")
         stored = decode_record(payloads[0])
         if stored != self.header:
             differ = sorted(k for k in stored.keys() | self.header.keys() if stored.get(k) != self.header.get(k))
-            raise _table_error(
+            raise TableError(
                 f"journal {self.path} was written for a different config (hash {_header_digest(stored)}, this build "
                 f"{_header_digest(self.header)}; differs in {', '.join(differ)}): delete it to start over")
         for payload in payloads[1:]:
@@ -296,9 +279,9 @@ class Journal:
             raise ValueError(f"journal {self.path} is closed")
         point = record.get("point")
         if isinstance(point, bool) or not isinstance(point, int | np.integer):
-            raise _table_error(f"journal record: 'point' must be an int, got {point!r}")
+            raise TableError(f"journal record: 'point' must be an int, got {point!r}")
         if not isinstance(record.get("status"), str):
-            raise _table_error(f"journal record for point {point}: 'status' must be a str, got "
+            raise TableError(f"journal record for point {point}: 'status' must be a str, got "
                                f"{record.get('status')!r}")
         payload = encode_record(record)
         frame = encode_frame(payload)

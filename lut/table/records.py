@@ -1,7 +1,9 @@
-"""One grid point's result as a flat record (``"/"``-separated keys → numbers, arrays, strings).
+"""A grid point's result as a flat record (``"/"``-separated keys → numbers, arrays, strings), and back.
 
-Records travel from a point worker to the journal and into the HDF5 table; a feasible record is also
-the warm start of its neighbours and the material a query interpolates. No pickles anywhere.
+The flat record is the storage form of a :class:`~lut.table.point_result.PointResult`: a point's child
+process writes it as .npz, the build journal appends it, the HDF5 table stores one dataset per key
+(docs/table.md, Store). Everything else handles the typed form; these functions are the only crossing.
+No pickles anywhere.
 """
 
 from __future__ import annotations
@@ -10,57 +12,93 @@ from typing import Any
 
 import numpy as np
 
+from lut.table.point_result import PointResult, PointStatus
 from planner.plan import GraspPlan
 from planner.plan_parameters import ApproachParameters, PlanParameters
 from planner.verify.verifier import VerifyReport
 
 Record = dict[str, Any]
 
-# fields a query interpolates between corner points (all numeric parameter arrays)
+# the plan parameters' keys, in record order (all numeric arrays or numbers a query interpolates)
 PARAMETER_KEYS = ("approach_params", "base_offset_m", "start_delay_s", "q_tracking", "stabilization_params")
+MAX_REASON_CHARS = 2000  # a failure reason is cut here: a record stays small
+_BASE_KEYS = ("point", "status", "failure_reason", "solve_time_s", "iterations")
 
 
-def record_from_plan(point: int, plan: GraspPlan, report: VerifyReport) -> Record:
-    """The table record of a solved, verified plan."""
-    rec: Record = {
-        "point": point,
-        "status": "feasible" if report.feasible else "infeasible",
-        "failure_reason": "; ".join(report.violations)[:2000],
-        "solve_time_s": float(plan.timings_s.get("total_s", np.nan)),
-        "iterations": int(plan.approach.iterations + plan.stabilization.iterations),
-        "approach_params": np.asarray(plan.approach.params, dtype=float),
-        "base_offset_m": np.asarray(plan.approach.base_offset_m, dtype=float),
-        "start_delay_s": float(plan.approach.start_delay_s),
-        "q_tracking": np.asarray(plan.approach.q_tracking, dtype=float),
-        "stabilization_params": np.asarray(plan.stabilization.params, dtype=float),
-        "free_axis_angle_rad": float(plan.tracking.free_axis_angle_rad),
-        "costs/approach_energy_m2": float(np.dot(plan.approach.base_offset_m, plan.approach.base_offset_m)),
-        "costs/min_distance_m": float(np.min(report.min_distance_m)),
-        "costs/peak_grasp_torque_nm": float(np.abs(report.grasp_wrench[:, 3:]).max()),
-    }
-    for name, check in report.checks.items():
-        rec[f"margins/{name}"] = float(check.margin)
+def result_from_plan(point: int, plan: GraspPlan, report: VerifyReport) -> PointResult:
+    """The result of a solved, verified plan."""
+    costs = {"approach_energy_m2": float(np.dot(plan.approach.base_offset_m, plan.approach.base_offset_m)),
+             "min_distance_m": float(np.min(report.min_distance_m)),
+             "peak_grasp_torque_nm": float(np.abs(report.grasp_wrench[:, 3:]).max())}
+    approach = ApproachParameters(params=np.asarray(plan.approach.params, dtype=float),
+                                  base_offset_m=np.asarray(plan.approach.base_offset_m, dtype=float),
+                                  start_delay_s=float(plan.approach.start_delay_s),
+                                  q_tracking=np.asarray(plan.approach.q_tracking, dtype=float))
+    return PointResult(point=point, status=PointStatus.FEASIBLE if report.feasible else PointStatus.INFEASIBLE,
+                       failure_reason="; ".join(report.violations)[:MAX_REASON_CHARS],
+                       solve_time_s=float(plan.timings_s.get("total_s", np.nan)),
+                       iterations=int(plan.approach.iterations + plan.stabilization.iterations),
+                       parameters=PlanParameters(approach, np.asarray(plan.stabilization.params, dtype=float)),
+                       free_axis_angle_rad=float(plan.tracking.free_axis_angle_rad), costs=costs,
+                       margins={name: float(check.margin) for name, check in report.checks.items()})
+
+
+def failed_result(point: int, reason: str, solve_time_s: float = float("nan")) -> PointResult:
+    """A point that crashed or timed out: no parameters, the reason kept."""
+    return PointResult(point, PointStatus.FAILED, reason[:MAX_REASON_CHARS], float(solve_time_s))
+
+
+def out_of_reach_result(point: int, reason: str, solve_time_s: float) -> PointResult:
+    """A point the planner proved infeasible before solving (:class:`planner.plan.OutOfReach`): no parameters."""
+    return PointResult(point, PointStatus.INFEASIBLE, reason[:MAX_REASON_CHARS], float(solve_time_s))
+
+
+def to_record(result: PointResult) -> Record:
+    """The flat record of ``result`` (keys in the order the journal has always stored them)."""
+    rec: Record = {"point": result.point, "status": result.status.value, "failure_reason": result.failure_reason,
+                   "solve_time_s": result.solve_time_s, "iterations": result.iterations}
+    if result.parameters is not None:
+        rec.update(parameter_fields(result.parameters))
+    if result.free_axis_angle_rad is not None:
+        rec["free_axis_angle_rad"] = result.free_axis_angle_rad
+    rec.update({f"costs/{name}": value for name, value in result.costs.items()})
+    rec.update({f"margins/{name}": value for name, value in result.margins.items()})
     return rec
 
 
-def failed_record(point: int, reason: str, solve_time_s: float = float("nan")) -> Record:
-    """A point that crashed or timed out: no parameters, the reason kept."""
-    return {"point": point, "status": "failed", "failure_reason": reason[:2000], "solve_time_s": float(solve_time_s),
-            "iterations": 0}
+def from_record(rec: Record) -> PointResult:
+    """The typed form of a flat record (of a journal, a point's .npz, or :meth:`lut.table.store.Table.record`).
+
+    A table holds every field at every point (the missing value where a point has none, docs/table.md), so
+    a table record of a failed point carries NaN parameters; only feasible points' are ever read.
+    """
+    free = rec.get("free_axis_angle_rad")
+    return PointResult(point=int(rec["point"]), status=PointStatus(rec["status"]),
+                       failure_reason=str(rec.get("failure_reason", "")),
+                       solve_time_s=float(rec.get("solve_time_s", float("nan"))),
+                       iterations=int(rec.get("iterations", 0)), parameters=parameters_from_fields(rec),
+                       free_axis_angle_rad=None if free is None else float(free),
+                       costs=_prefixed(rec, "costs/"), margins=_prefixed(rec, "margins/"))
 
 
-def out_of_reach_record(point: int, reason: str, solve_time_s: float) -> Record:
-    """A point the planner proved infeasible before solving (:class:`planner.plan.OutOfReach`): no parameters."""
-    return {**failed_record(point, reason, solve_time_s), "status": "infeasible"}
+def _prefixed(rec: Record, prefix: str) -> dict[str, float]:
+    return {key[len(prefix):]: float(value) for key, value in rec.items() if key.startswith(prefix)}
 
 
-def has_parameters(rec: Record) -> bool:
-    """True when ``rec`` holds every parameter a plan can be re-simulated from."""
-    return all(key in rec for key in PARAMETER_KEYS)
+def parameter_fields(parameters: PlanParameters) -> Record:
+    """The plan parameters as record fields (:data:`PARAMETER_KEYS`; no stabilization key when it has none)."""
+    a = parameters.approach
+    fields: Record = {"approach_params": a.params, "base_offset_m": a.base_offset_m,
+                      "start_delay_s": a.start_delay_s, "q_tracking": a.q_tracking}
+    if parameters.stabilization_params is not None:
+        fields["stabilization_params"] = parameters.stabilization_params
+    return fields
 
 
-def parameters_from_record(rec: Record) -> PlanParameters:
-    """The plan parameters a (feasible) record holds."""
+def parameters_from_fields(rec: Record) -> PlanParameters | None:
+    """The plan parameters ``rec`` holds, ``None`` unless it holds every one of :data:`PARAMETER_KEYS`."""
+    if not all(key in rec for key in PARAMETER_KEYS):
+        return None
     approach = ApproachParameters(params=np.asarray(rec["approach_params"], dtype=float),
                                   base_offset_m=np.asarray(rec["base_offset_m"], dtype=float),
                                   start_delay_s=float(rec["start_delay_s"]),

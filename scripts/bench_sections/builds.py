@@ -22,8 +22,8 @@ from bench_sections.common import (
     stats,
     table_query,
 )
-from lut.build.sweep import BuildOptions, prepare, run_build
-from lut.build.sweep import _layers as continuation_layers  # the builder's own layering, so the two cannot disagree
+from lut.build.options import BuildOptions
+from lut.build.sweep import continuation_layers, prepare, run_build  # the builder's own layering
 
 BACKEND_KEYS = ("wall_s", "points_per_hour", "feasible")
 

@@ -96,15 +96,15 @@ def collision_sweep(settings: Settings) -> dict[str, Any]:
 def verify_one_plan(settings: Settings) -> dict[str, Any]:
     """``planner.verify.verifier.verify`` of a whole plan: the golden table's parameters re-simulated at a grid
     node (interpolation there returns that node's record), timed apart from the simulation."""
-    from lut.table.records import parameters_from_record
     from planner.verify.verifier import DEFAULT_STEP_S, verify
 
     tq = table_query(GOLDEN_TABLE)
     point = tq.grid.seed_point()
     state = tq.grid.state(point)
-    rec, corners, _ = tq.interpolate(state)
+    found = tq.interpolate(state)
+    corners = found.corners
     rate = float(np.linalg.norm(state.omega_body_rad_s))
-    given = parameters_from_record(rec).shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.max_start_delay_s)
+    given = found.parameters.shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.max_start_delay_s)
     plan, simulate_s = timed(lambda: tq.planner.simulate(state, given))
     runs = []
     for _ in range(settings.verify_runs):

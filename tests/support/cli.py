@@ -10,8 +10,9 @@ from pathlib import Path
 
 import h5py
 
-from lut.build.sweep import prepare, table_hash
-from lut.table.store import write_table
+from lut.build.sweep import prepare
+from lut.table.model_identity import table_hash
+from lut.table.table_writer import write_table
 from tests.support.fake_solver import solve as fake_solve
 
 ROOT = Path(__file__).resolve().parents[2]

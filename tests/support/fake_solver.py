@@ -13,10 +13,15 @@ import signal
 import time
 
 import numpy as np
+from numpy.typing import NDArray
+
+from lut.table.records import Record
+from planner.plan_parameters import PlanParameters
 
 
-def solve(scenario_path: str, point: int, attitude_wxyz, omega_body_rad_s, warm, warm_shift_s: float,  # noqa: ANN001
-          max_wall_s: float | None = None) -> dict:
+def solve(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64], omega_body_rad_s: NDArray[np.float64],
+          warm: PlanParameters | None, warm_shift_s: float, max_wall_s: float | None = None) -> Record:
+    """The solver protocol of :func:`lut.solve.point_worker.solve_point`, answered without an NLP."""
     if os.environ.get("LUTGEN_FAKE_RAISE") == str(point):
         raise RuntimeError(f"injected failure at point {point}")
     if os.environ.get("LUTGEN_FAKE_HANG") == str(point):
@@ -27,7 +32,7 @@ def solve(scenario_path: str, point: int, attitude_wxyz, omega_body_rad_s, warm,
     seed = np.concatenate([np.asarray(attitude_wxyz, float), np.asarray(omega_body_rad_s, float)])
     base = np.sin(np.arange(1, 36) * seed.sum())
     if warm is not None:
-        base = base + 1e-3 * np.asarray(warm["approach_params"], float)
+        base = base + 1e-3 * np.asarray(warm.approach.params, float)
     return {
         "point": point, "status": "feasible", "failure_reason": "", "solve_time_s": 0.0, "iterations": 7,
         "approach_params": base, "base_offset_m": seed[1:3].copy(), "start_delay_s": float(10 + point + warm_shift_s),

@@ -1,0 +1,61 @@
+"""What a build is asked to do (``lutgen build``'s options) and what it reports back."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+
+from lut.solve.point_process import DEFAULT_SOLVER
+from planner.errors import LutgenError
+
+MAX_POINT_TIMEOUT_S = 7 * 86400.0  # a longer per-point limit is surely a typo [s]
+BACKENDS = ("loky", "dask")
+
+
+@dataclass
+class BuildOptions:
+    """``lutgen build``'s options (docs/table.md, Build)."""
+
+    jobs: int = 1
+    backend: str = "loky"  # or "dask"
+    scheduler: str | None = None  # dask: tcp://HOST:PORT
+    point_timeout_s: float = 900.0  # [s]
+    resume: bool = False  # continue the journal; a complete table is left as it is
+    force: bool = False  # start over: an existing table (replaced when the new one is complete) or journal
+    solver: str = DEFAULT_SOLVER  # module:function run in the point process
+    progress: bool = True
+
+
+class BuildOutcome(Enum):
+    BUILT = "built"  # points were solved (or all were journaled) and the table written
+    ALREADY_COMPLETE = "already complete"  # --resume of a complete table: nothing solved, nothing written
+
+
+@dataclass
+class BuildSummary:
+    """What a build did: the table, its point counts by status name, the points solved in this run."""
+
+    table: Path
+    n_points: int
+    counts: dict[str, int]
+    solved_now: int
+    wall_time_s: float  # [s]
+    failures: list[str] = field(default_factory=list)  # "point N: reason"
+    outcome: BuildOutcome = BuildOutcome.BUILT
+
+
+def check_options(options: BuildOptions) -> None:
+    """Raise :class:`LutgenError` for an option value no build can use (before any file is touched)."""
+    if options.resume and options.force:
+        raise LutgenError("--resume and --force exclude each other: continue the journal, or start over")
+    if not (np.isfinite(options.point_timeout_s) and 0 < options.point_timeout_s <= MAX_POINT_TIMEOUT_S):
+        raise LutgenError(f"--point-timeout: must be in (0, {MAX_POINT_TIMEOUT_S:g}] s, got {options.point_timeout_s}")
+    if options.jobs < 1:
+        raise LutgenError(f"-j/--jobs: must be >= 1, got {options.jobs}")
+    if options.backend not in BACKENDS:
+        raise LutgenError(f"--backend: must be loky or dask, got {options.backend!r}")
+    if options.backend == "dask" and not options.scheduler:
+        raise LutgenError("--backend dask needs --scheduler tcp://HOST:PORT")

@@ -1,0 +1,49 @@
+"""A cell's corners → one set of plan parameters: only corners that agree on the meeting time are averaged.
+
+Corners in different local minima meet the target at different times; averaging them would give a plan
+that meets it at neither. So the corners' start delays, carried to the query's phase by the flat-spin
+symmetry and taken on the circle of the spin period, must agree within :data:`CONSISTENT_DELAY_S`; the
+group of agreeing corners with the largest weight is averaged (docs/table.md, Query).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.plan_parameters import PlanParameters, circular_gap
+
+CONSISTENT_DELAY_S = 3.0  # corners whose carried start delays differ more are not averaged [s]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A feasible corner of the cell: its flat index, interpolation weight, and parameters carried to the query."""
+
+    corner: int
+    weight: float
+    parameters: PlanParameters
+
+    @property
+    def start_delay_s(self) -> float:
+        return self.parameters.approach.start_delay_s
+
+
+def consistent_group(candidates: Sequence[Candidate], period_s: float) -> list[Candidate]:
+    """The largest-weight group of candidates whose start delays agree (on the circle of ``period_s`` [s])."""
+    best: list[Candidate] = []
+    for ref in candidates:
+        group = [c for c in candidates if circular_gap(c.start_delay_s, ref.start_delay_s, period_s)
+                 <= CONSISTENT_DELAY_S]
+        if sum(c.weight for c in group) > sum(c.weight for c in best):
+            best = group
+    return best
+
+
+def mean_of_group(group: Sequence[Candidate], period_s: float) -> PlanParameters:
+    """The group's parameters averaged with its normalised weights (start delays on the period's circle)."""
+    w = np.array([c.weight for c in group])
+    w = w / w.sum()
+    return PlanParameters.weighted_mean([c.parameters for c in group], w, period_s)

@@ -1,0 +1,44 @@
+"""What a query answers: the verified plan, where it came from, the corners it used, its latency, and why a
+refine gave nothing."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from planner.plan import GraspPlan
+from planner.plan_parameters import PlanParameters
+from planner.verify.verifier import VerifyReport
+
+
+class QuerySource(StrEnum):
+    """Where a query's plan came from; the value is the text ``lutgen query`` prints."""
+
+    INTERPOLATED = "interpolated"  # the consistent corners of the enclosing cell, averaged
+    NEAREST = "nearest"  # the nearest feasible grid point (no feasible corner)
+    REFINED = "refined"  # a solve warm-started from the table's answer
+    SOLVED_COLD = "solved cold"  # a solve from scratch (with its retries over grasps)
+
+
+@dataclass(frozen=True)
+class TableAnswer:
+    """The table's parameters for a state, before any re-simulation: interpolated or the nearest point's.
+
+    ``parameters``' start delay is carried to the state's phase (not yet wrapped into the delay window).
+    """
+
+    parameters: PlanParameters
+    corners: list[int]  # the grid points used (flat indices)
+    source: QuerySource
+
+
+@dataclass
+class QueryResult:
+    """A query's verified plan; ``refine_failure``: why the last refine gave no plan ("" when none failed)."""
+
+    plan: GraspPlan
+    report: VerifyReport
+    source: QuerySource
+    corners_used: list[int]
+    latency_s: dict[str, float] = field(default_factory=dict)  # by step, e.g. "verify_s" [s]
+    refine_failure: str = ""

@@ -1,0 +1,50 @@
+"""Run one point's solve in a child process with a hard time limit; a timeout or a crash becomes a failed result."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from lut.solve.point_worker import WARM_PREFIX, load_npz, save_npz
+from lut.table.point_result import PointResult
+from lut.table.records import failed_result, from_record, parameter_fields
+from planner.model.target import TargetState
+from planner.plan_parameters import PlanParameters
+
+DEFAULT_SOLVER = "lut.solve.point_worker:solve_point"  # module:function the child runs
+
+
+def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: PlanParameters | None,
+              warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None,
+              timeout_name: str = "--point-timeout") -> PointResult:
+    """Solve one point in a child process; timeouts and crashes become failed results.
+
+    ``warm``, shifted in time by ``warm_shift_s`` [s], is the solve's warm start. ``max_wall_s`` [s], when
+    given, lowers the per-NLP wall-time limit of the solve (see :func:`lut.solve.point_worker.solve_point`);
+    ``timeout_s`` [s] is the hard limit of the whole process, which a timeout's reason names as
+    ``timeout_name`` (the option that set it).
+    """
+    with tempfile.TemporaryDirectory(prefix="lutgen-point-") as tmp:
+        in_path, out_path = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
+        args = {"scenario_path": scenario_path, "point": point, "attitude_wxyz": state.attitude_wxyz,
+                "omega_body_rad_s": state.omega_body_rad_s, "warm_shift_s": warm_shift_s}
+        if max_wall_s is not None:
+            args["max_wall_s"] = max_wall_s
+        if warm is not None:
+            args.update({WARM_PREFIX + key: value for key, value in parameter_fields(warm).items()})
+        save_npz(in_path, args)
+        t0 = time.perf_counter()
+        try:
+            proc = subprocess.run([sys.executable, "-m", "lut.solve.point_worker", solver, str(in_path),
+                                   str(out_path), str(os.getpid())], capture_output=True, text=True, timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            return failed_result(point, f"timeout: exceeded {timeout_name} {timeout_s:g} s", time.perf_counter() - t0)
+        if proc.returncode != 0 or not out_path.exists():
+            last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+            how = f"signal {-proc.returncode}" if proc.returncode < 0 else f"exit code {proc.returncode}"
+            return failed_result(point, f"worker crashed ({how}): {last}", time.perf_counter() - t0)
+        return from_record(load_npz(out_path))
