@@ -7,22 +7,19 @@ chooses — the tracking IK's (our generalisation: the joint motion is C² acros
 wrench starts from zero, which a tight grasp-torque limit needs) or zero (the paper's Eq. 24, which
 copes with a grasp where the IK is still accelerating hard) — and brings the joint velocities to zero at
 t_f³ (Eq. 11). Constraints at k via points: joint boxes (Eq. 12), collision with the target now in the
-chain (Eq. 13), and the grasp wrench within its limits: the force and moment the gripper exerts on the
-target, ``F = m_T a_T``, ``M = I_T ω̇_T + ω_T × I_T ω_T + (p_T − p_grasp) × F`` (about the grasp point),
-in the grasp frame — what a wrist force/torque sensor reads. Accelerations come from exact time
-derivatives (``casadi.jtimes``) of the symbolic twists along the state rates. Costs: chaser attitude
-disturbance (Σ‖ω_base‖² at the via points) or peak grasp torque (a slack bounding every component).
-With no stabilization cost weight the solve stops at the first iterate inside every constraint
-(:mod:`planner.nlp.feasibility_stop`).
+chain (Eq. 13), and the grasp wrench within its limits (:mod:`planner.phases.stabilization_dynamics`).
+Costs: chaser attitude disturbance (Σ‖ω_base‖² at the via points) or peak grasp torque (a slack bounding
+every component). With no stabilization cost weight the solve stops at the first iterate inside every
+constraint (:mod:`planner.nlp.feasibility_stop`). See docs/phases.md, Stabilization.
 
 The NLP is built once per scenario: where the target was grasped (the compound's last-link inertia, the
 wrench's lever arms) enters as parameters (:mod:`planner.model.compound`), so every grasp, at any free-axis
 angle, reuses it. It is an MX graph over small SX Functions.
 
 A cold solve goes coarse to fine: the same NLP on ``coarse_via_points`` via points first (a third of the
-cost per iteration), then the full NLP from that answer. Scenario II's torque limit leaves a thin feasible
-set that IPOPT's limited-memory iterations approach slowly from the heuristic start (122 iterations, 53 s
-cold); from the coarse answer the full NLP needs a fraction of that (measured: 38 + 32 iterations, 14 s).
+cost per iteration), then the full NLP from that answer: a thin feasible set (a tight torque limit) that
+IPOPT's limited-memory iterations approach slowly from the heuristic start is approached in a fraction of
+the iterations from the coarse answer.
 """
 
 from __future__ import annotations
@@ -39,117 +36,58 @@ from planner.collision.layout import TARGET_BODY
 from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import Scenario
 from planner.model.compound import GEOMETRY_SIZE, GraspGeometry, grasp_geometry
-from planner.model.freefloating import (
-    FreeFloatingModel,
-    base_pose_rate_sym,
-    base_twist_sym,
-    generalized_jacobian_sym,
-    momentum_map,
-    quat_to_rotation_sym,
-    rk4_step_function,
-)
-from planner.model.robot import RobotModel, fk_function
-from planner.model.rotation import quat_to_matrix
+from planner.model.freefloating import quat_to_rotation_sym
 from planner.nlp import constraint_backoff
 from planner.nlp.bspline import UniformCubicBSpline
-from planner.nlp.phase_spline import stabilization_vertices
-from planner.nlp.compiled import compiled
 from planner.nlp.feasibility_stop import FeasibilityStop
 from planner.nlp.ipopt import ipopt_options, ipopt_solver
+from planner.nlp.layout import VectorLayout
+from planner.nlp.outcome import SolveOutcome
+from planner.nlp.phase_spline import stabilization_vertices
+from planner.phases.stabilization_dynamics import (
+    JACOBIAN_FIRST_PENALTY,
+    InnerFunctions,
+    grasp_momentum_world,
+    wrench_function,
+)
+
+__all__ = ["JACOBIAN_FIRST_PENALTY", "GraspState", "InnerFunctions", "StabilizationProblem", "StabilizationSolution",
+           "grasp_momentum_world", "stabilization_spline", "via_point_times", "wrench_function"]
 
 Array = NDArray[np.float64]
-
-# CasADi's ``jac_penalty`` of the grasp-wrench Function. The NLP's constraint Jacobian pushes one forward
-# direction per decision parameter (~35) through each of its ~66 calls; CasADi instead forms the Function's
-# own Jacobian (a few reverse sweeps) and multiplies the seeds when jac_penalty × its 69 inputs (34 of state,
-# 35 of grasp geometry) is below the number of directions, which the default (2) forbids. Same exact
-# derivative, fewer sweeps: measured on scenario II, interpreted, the constraint Jacobian 0.29 s → 0.16 s. (A
-# compiled wrench, planner.nlp.compiled, is always differentiated through its compiled Jacobian.)
-JACOBIAN_FIRST_PENALTY = 0.25
-
 
 @dataclass(frozen=True)
 class GraspState:
     """The compound's state at the grasp instant (start of stabilization)."""
 
-    q: Array  # rad
-    qd: Array  # rad/s
-    qdd: Array  # rad/s², the stabilization spline's start acceleration (scenario.stabilization.start_acceleration)
-    x_base: Array  # [p_world_base, quat_world_base]
-    h_world: Array  # [P, L_G] of the compound, world (N·s, N·m·s)
-    T_ee_target: Array  # 4×4, target body frame in the ee (grasp) frame
+    q: Array  # (7,) [rad]
+    qd: Array  # (7,) [rad/s]
+    qdd: Array  # (7,) [rad/s²], the stabilization spline's start acceleration (stabilization.start_acceleration)
+    x_base: Array  # (7,) [p_world_base [m], quat_world_base]
+    h_world: Array  # (6,) [P [N·s], L_G [N·m·s]] of the compound, world
+    T_ee_target: Array  # (4, 4) target body frame in the ee (grasp) frame
 
 
 @dataclass(frozen=True)
 class StabilizationSolution:
-    params: Array  # Eq. 24 free parameters, planner.nlp.bspline layout
+    """Result of the stabilization NLP."""
+
+    params: Array  # (7·(N−5),) Eq. 24 free parameters, planner.nlp.phase_spline layout [rad, rad/s³]
     success: bool
-    status: str
+    status: SolveOutcome
     iterations: int
     solve_time_s: float
     build_time_s: float
     cost: float
-    peak_torque_nm: float  # at the via points, grasp frame, max |component|
-    min_distance_m: float
+    peak_torque_nm: float  # at the via points, grasp frame, max |component| [N·m]
+    min_distance_m: float  # at the via points [m]
 
+    @classmethod
+    def given(cls, params: Array) -> StabilizationSolution:
+        """Given parameters used as they are, without a solve (status ``"given"``, no torque or clearance)."""
+        return cls(params, success=True, status=SolveOutcome.GIVEN, iterations=0, solve_time_s=0.0, build_time_s=0.0,
+                   cost=0.0, peak_torque_nm=float("nan"), min_distance_m=float("nan"))
 
-def grasp_momentum_world(chaser: FreeFloatingModel, compound: FreeFloatingModel, q: Array, qd: Array,
-                         x_base: Array) -> Array:
-    """Momentum ``[P, L_G]`` (world; N·s, N·m·s) of the compound at the grasp instant.
-
-    Before the grasp the chaser's own momentum is zero, so its base moves with the twist that momentum
-    gives; the target moves rigidly with the gripper (matched velocity), so the compound with that base
-    twist and the joint rates ``qd`` carries the chaser's and the target's momentum together.
-    """
-    nu = np.asarray(chaser.base_twist(q, qd, np.zeros(6))).ravel()
-    A_b, A_m, _ = (np.asarray(a) for a in compound.momentum(q))
-    h_base = A_b @ nu + A_m @ qd
-    R = quat_to_matrix(x_base[3:])
-    return np.concatenate([R @ h_base[:3], R @ h_base[3:]])
-
-
-def wrench_function(robot: RobotModel) -> ca.Function:
-    """``(x_base, q, qd, qdd, h_world, geometry) -> (F_grasp, M_grasp, ω_base, R_ee, p_ee)``, all SX-exact.
-
-    F, M: force (N) and moment about the grasp point (N·m) the gripper exerts on the target, in the
-    grasp frame; ω_base: chaser base angular velocity (rad/s, base frame); R_ee, p_ee: gripper pose in the
-    world. ``geometry``: the grasp geometry (:mod:`planner.model.compound`), so the Function depends on the
-    chaser ``robot`` alone.
-    """
-    n = robot.n_joints
-    x = ca.SX.sym("x_base", 7)
-    q = ca.SX.sym("q", n)
-    qd = ca.SX.sym("qd", n)
-    qdd = ca.SX.sym("qdd", n)
-    h = ca.SX.sym("h_world", 6)
-    geo_vec = ca.SX.sym("geometry", GEOMETRY_SIZE)
-    geo = GraspGeometry.unpack(geo_vec)
-    mm = momentum_map(geo.compound(robot), q)
-    R_wb = quat_to_rotation_sym(x[3:7])
-    h_base = ca.vertcat(ca.mtimes(R_wb.T, h[:3]), ca.mtimes(R_wb.T, h[3:]))
-    J_star, D = generalized_jacobian_sym(mm)
-    twist_ee_base = ca.mtimes(J_star, qd) + ca.mtimes(D, h_base)
-    R_ee = ca.mtimes(R_wb, mm.R_ee)
-    p_ee = x[:3] + ca.mtimes(R_wb, mm.p_ee)
-    v_ee = ca.mtimes(R_wb, twist_ee_base[:3])
-    w_ee = ca.mtimes(R_wb, twist_ee_base[3:])
-    r_T = ca.mtimes(R_ee, geo.p_ee_target)  # grasp point → target COM, world
-    v_T = v_ee + ca.cross(w_ee, r_T)
-    state = ca.vertcat(x, q, qd)
-    rate = ca.vertcat(base_pose_rate_sym(mm, x, qd, h), qd, qdd)
-    a_T = ca.jtimes(v_T, state, rate)
-    alpha = ca.jtimes(w_ee, state, rate)
-    R_T = ca.mtimes(R_ee, geo.R_ee_target)
-    I_w = ca.mtimes(ca.mtimes(R_T, geo.target_inertia_body_kg_m2), R_T.T)
-    F = geo.target_mass_kg * a_T
-    M_com = ca.mtimes(I_w, alpha) + ca.cross(w_ee, ca.mtimes(I_w, w_ee))
-    M_grasp = M_com + ca.cross(r_T, F)
-    twist_base = base_twist_sym(mm, qd, h_base)
-    return ca.Function("grasp_wrench", [x, q, qd, qdd, h, geo_vec],
-                       [ca.mtimes(R_ee.T, F), ca.mtimes(R_ee.T, M_grasp), twist_base[3:], R_ee, p_ee],
-                       ["x_base", "q", "qd", "qdd", "h_world", "geometry"],
-                       ["F_grasp", "M_grasp", "omega_base", "R_ee", "p_ee"],
-                       {"jac_penalty": JACOBIAN_FIRST_PENALTY})
 
 
 def stabilization_spline(scenario: Scenario) -> UniformCubicBSpline:
@@ -176,65 +114,89 @@ def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float
 STOP_CONSTRAINT_TOL = 1e-6
 
 
+
 @dataclass(frozen=True)
-class InnerFunctions:
-    """The SX Functions the stabilization NLP calls at every RK4 node and via point; they depend on the robot
-    alone (grasp geometry is an input), so the coarse and the full NLP share one set."""
+class _AtViaPoints:
+    """The stabilization's symbolic quantities at its via points, each stacked over the k via points."""
 
-    rk4_step: ca.Function  # rk4_step_function of the compound, geometry as last input (compiled)
-    wrench: ca.Function  # wrench_function (compiled)
-    fk: ca.Function  # fk_function
-
-    @staticmethod
-    def of(robot: RobotModel) -> InnerFunctions:
-        """Build them, the RK4 step and the wrench compiled to C (:mod:`planner.nlp.compiled`)."""
-        geometry = ca.SX.sym("geometry", GEOMETRY_SIZE)
-        return InnerFunctions(compiled(rk4_step_function(GraspGeometry.unpack(geometry).compound(robot), geometry)),
-                              compiled(wrench_function(robot), {"jac_penalty": JACOBIAN_FIRST_PENALTY}),
-                              fk_function(robot))
+    q: ca.MX  # (7k,) joint positions [rad]
+    qd: ca.MX  # (7k,) joint rates [rad/s]
+    torques: ca.MX  # (3k,) grasp moment, grasp frame [N·m]
+    forces: ca.MX  # (3k,) grasp force, grasp frame [N]
+    omegas_base: list[ca.MX]  # k × (3,) base angular velocity [rad/s]
+    poses: list[ca.MX]  # k stacked body poses (chaser bodies, then the grasped target)
 
 
 class StabilizationProblem:
-    """The stabilization NLP of a scenario; solve() takes the grasp state and its geometry as parameters."""
+    """The stabilization NLP of a scenario; solve() takes the grasp state and its geometry as parameters.
+
+    Decision variables: the Eq. 24 parameters (and, with a peak-wrench cost, a torque slack). Parameters
+    (:attr:`parameter_layout`): the grasp state, the compound's momentum and the grasp geometry. Constraints
+    (:attr:`constraints`), at the via points: joint positions and rates, collision, grasp torque and force.
+    """
 
     def __init__(self, scenario: Scenario, torque_limit_nm: float | None = None,
                  functions: InnerFunctions | None = None) -> None:
         t_build = time.perf_counter()
         self.scenario = sc = scenario
-        robot = sc.robot
-        n = robot.n_joints
-        st = sc.stabilization
-        T = sc.phases.stabilization_s
         self.spline = stabilization_spline(sc)
-        via_times = via_point_times(self.spline, st.via_points)
-        k = len(via_times)
-        self.k = k
-        self.n_params = n * self.spline.n_free_per_joint
+        self.via_times_s = via_point_times(self.spline, sc.stabilization.via_points)
+        self.k = len(self.via_times_s)
+        self.n_params = sc.robot.n_joints * self.spline.n_free_per_joint
         self.torque_limit_nm = torque_limit_nm
-        self.coarse_via_points = st.coarse_via_points
+        self.coarse_via_points = sc.stabilization.coarse_via_points
         self._coarse: StabilizationProblem | None = None
-        torque_limit = sc.limits.grasp_torque_max_nm if torque_limit_nm is None else torque_limit_nm
-
+        self.parameter_layout = self._parameter_layout()
         P = ca.MX.sym("P", self.n_params)
-        par = ca.MX.sym("par", 3 * n + 7 + 6 + GEOMETRY_SIZE)  # q_in, qd_in, qdd_in, x_base0, h_world, geometry
-        q_in, qd_in, a_in = par[:n], par[n:2 * n], par[2 * n:3 * n]
-        x = par[3 * n:3 * n + 7]
-        h = par[3 * n + 7:3 * n + 13]
-        geo_vec = par[3 * n + 13:]
+        par = ca.MX.sym("par", self.parameter_layout.size)
+        self.functions = functions or InnerFunctions.of(sc.robot)
+        via = self._at_via_points(P, par)
+        self.decision = VectorLayout()
+        self.decision.add("spline_params", self.n_params)
+        self.constraints = VectorLayout()
+        cost, w_extra = self._add_constraints(via, P)
+        self.n_extra = len(w_extra)
+        self.lbg, self.ubg = self.constraints.lower, self.constraints.upper
+        self.lbw, self.ubw = self.decision.lower, self.decision.upper
+        self.outputs = ca.Function("stabilization_outputs", [P, par], [via.torques, via.forces, self._distances])
+        nlp = {"x": ca.vertcat(P, *w_extra), "p": par, "f": cost, "g": self.constraints.expression()}
+        # with nothing to optimise, the first iterate inside every constraint is the answer; the same callback
+        # enforces an iteration budget when the caller gives one
+        c = sc.costs
+        self.feasibility_only = c.attitude_disturbance == 0 and c.peak_wrench == 0
+        self.stop = FeasibilityStop("stabilization_stop", self.n_params + self.n_extra, len(self.lbg), par.numel(),
+                                    slice(0, 0), 0.0, STOP_CONSTRAINT_TOL)
+        self.solver = ipopt_solver("stabilization", nlp, {"iteration_callback": self.stop} | ipopt_options(sc.solver))
+        self.build_time_s = time.perf_counter() - t_build
+
+    def _parameter_layout(self) -> VectorLayout:
+        """``p``: the grasp state, the compound's momentum and the grasp geometry (see :meth:`parameters`)."""
+        n = self.scenario.robot.n_joints
+        layout = VectorLayout()
+        for name, size in (("q", n), ("qd", n), ("qdd", n), ("x_base", 7), ("h_world", 6),
+                           ("geometry", GEOMETRY_SIZE)):
+            layout.add(name, size)
+        return layout
+
+    def _at_via_points(self, P: ca.MX, par: ca.MX) -> _AtViaPoints:
+        """Eq. 24's joints from ``P``, the compound's base by RK4, and what the constraints need at the via points."""
+        sc, fn, lay = self.scenario, self.functions, self.parameter_layout
+        robot, T = sc.robot, sc.phases.stabilization_s
+        x, h, geo_vec = par[lay.slice("x_base")], par[lay.slice("h_world")], par[lay.slice("geometry")]
         geo = GraspGeometry.unpack(geo_vec)
-        self.functions = fn = functions or InnerFunctions.of(robot)
-        V = stabilization_vertices(self.spline, q_in, qd_in, a_in, P)
+        V = stabilization_vertices(self.spline, par[lay.slice("q")], par[lay.slice("qd")], par[lay.slice("qdd")], P)
         # RK4 nodes: a uniform grid refined so that every via point is a node (steps may differ)
-        nodes = np.unique(np.round(np.concatenate([np.linspace(0.0, T, st.rk4_steps + 1), via_times]), 9))
+        nodes = np.unique(np.round(np.concatenate([np.linspace(0.0, T, sc.stabilization.rk4_steps + 1),
+                                                   self.via_times_s]), 9))
         mids = 0.5 * (nodes[:-1] + nodes[1:])
         Qn, Qdn, Qddn = (self.spline.evaluate(V, nodes, d) for d in (0, 1, 2))
         Qm, Qdm = (self.spline.evaluate(V, mids, d) for d in (0, 1))
         xs = [x]
         for i in range(len(nodes) - 1):
             x = fn.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
-                         h, nodes[i + 1] - nodes[i], geo_vec)
+                            h, nodes[i + 1] - nodes[i], geo_vec)
             xs.append(x)
-        via_idx = [int(np.argmin(np.abs(nodes - tv))) for tv in via_times]
+        via_idx = [int(np.argmin(np.abs(nodes - tv))) for tv in self.via_times_s]
         forces, torques, omegas, poses = [], [], [], []
         for i in via_idx:
             F, M, w_b, R_ee, p_ee = fn.wrench(xs[i], Qn[i, :].T, Qdn[i, :].T, Qddn[i, :].T, h, geo_vec)
@@ -247,56 +209,39 @@ class StabilizationProblem:
                       for b in range(len(robot.body_names))]
             blocks.append(pose_vector(ca.mtimes(R_ee, geo.R_ee_target), p_ee + ca.mtimes(R_ee, geo.p_ee_target)))
             poses.append(ca.vertcat(*blocks))
+        return _AtViaPoints(ca.vertcat(*[Qn[i, :].T for i in via_idx]), ca.vertcat(*[Qdn[i, :].T for i in via_idx]),
+                            ca.vertcat(*torques), ca.vertcat(*forces), omegas, poses)
+
+    def _add_constraints(self, via: _AtViaPoints, P: ca.MX) -> tuple[ca.MX, list[ca.MX]]:
+        """Joint boxes (Eq. 12), collision (Eq. 13) and the grasp wrench, in order; ``(cost, extra variables)``."""
+        sc, robot, k, bo = self.scenario, self.scenario.robot, self.k, constraint_backoff
         self.scene = build_scene(sc)
         self.distance_cb = SceneDistanceCallback("stabilization_distance", self.scene,
-                                                 [*robot.body_names, TARGET_BODY], len(poses))
-        dists = [self.distance_cb(ca.vertcat(*poses))]
-        q_box = ca.vertcat(*[Qn[i, :].T for i in via_idx])
-        qd_box = ca.vertcat(*[Qdn[i, :].T for i in via_idx])
-        M_all = ca.vertcat(*torques)
-        F_all = ca.vertcat(*forces)
-        att = sum(ca.sumsqr(w) for w in omegas) / k
-        c = sc.costs
-        w_extra, lbw_extra, ubw_extra = [], [], []
-        cost = c.attitude_disturbance * att
-        g = [q_box, qd_box, *dists, M_all, F_all]
-        margin = sc.limits.collision_margin_m
-        n_d = len(self.scene.pairs)
-        tl = torque_limit if np.isfinite(torque_limit) else np.inf
-        fl = sc.limits.grasp_force_max_n if np.isfinite(sc.limits.grasp_force_max_n) else np.inf
-        bo = constraint_backoff
+                                                 [*robot.body_names, TARGET_BODY], len(via.poses))
+        self._distances = self.distance_cb(ca.vertcat(*via.poses))
+        torque_limit = sc.limits.grasp_torque_max_nm if self.torque_limit_nm is None else self.torque_limit_nm
+        tl = bo.WRENCH_FRACTION * (torque_limit if np.isfinite(torque_limit) else np.inf)
+        fl = bo.WRENCH_FRACTION * (sc.limits.grasp_force_max_n if np.isfinite(sc.limits.grasp_force_max_n) else np.inf)
         qd_lim = bo.JOINT_VELOCITY_FRACTION * robot.qd_max
-        tl, fl = bo.WRENCH_FRACTION * tl, bo.WRENCH_FRACTION * fl
-        lbg = [np.tile(robot.q_min + bo.JOINT_POSITION_RAD, k), np.tile(-qd_lim, k),
-               np.full(k * n_d, margin + bo.COLLISION_M), np.full(3 * k, -tl), np.full(3 * k, -fl)]
-        ubg = [np.tile(robot.q_max - bo.JOINT_POSITION_RAD, k), np.tile(qd_lim, k), np.full(k * n_d, np.inf),
-               np.full(3 * k, tl), np.full(3 * k, fl)]
+        g = self.constraints
+        g.add_expression("joint_positions", via.q, np.tile(robot.q_min + bo.JOINT_POSITION_RAD, k),
+                         np.tile(robot.q_max - bo.JOINT_POSITION_RAD, k))
+        g.add_expression("joint_velocities", via.qd, np.tile(-qd_lim, k), np.tile(qd_lim, k))
+        g.add_expression("collision", self._distances, sc.limits.collision_margin_m + bo.COLLISION_M, np.inf)
+        g.add_expression("grasp_torque", via.torques, -tl, tl)
+        g.add_expression("grasp_force", via.forces, -fl, fl)
+        c = sc.costs
+        cost = c.attitude_disturbance * (sum(ca.sumsqr(w) for w in via.omegas_base) / k)
+        w_extra = []
         if c.peak_wrench > 0:
             s = ca.MX.sym("s_torque")
             w_extra.append(s)
-            lbw_extra.append(0.0)
-            ubw_extra.append(np.inf)
-            g += [s - M_all, s + M_all]
-            lbg += [np.zeros(3 * k), np.zeros(3 * k)]
-            ubg += [np.full(3 * k, np.inf), np.full(3 * k, np.inf)]
+            self.decision.add("torque_slack", 1, 0.0, np.inf)
+            g.add_expression("torque_slack_above", s - via.torques, 0.0, np.inf)
+            g.add_expression("torque_slack_below", s + via.torques, 0.0, np.inf)
             cost = cost + c.peak_wrench * s
         # a small jerk-like regulariser keeps a feasibility solve from returning wild interior vertices
-        cost = cost + 1e-6 * ca.sumsqr(P)
-        self.n_extra = len(w_extra)
-        self.lbg, self.ubg = np.concatenate(lbg), np.concatenate(ubg)
-        self.lbw = np.concatenate([np.full(self.n_params, -np.inf), lbw_extra])
-        self.ubw = np.concatenate([np.full(self.n_params, np.inf), ubw_extra])
-        self.n_box = 2 * k * n
-        self.n_dist = k * n_d
-        self.outputs = ca.Function("stabilization_outputs", [P, par], [M_all, F_all, ca.vertcat(*dists)])
-        nlp = {"x": ca.vertcat(P, *w_extra), "p": par, "f": cost, "g": ca.vertcat(*g)}
-        # with nothing to optimise, the first iterate inside every constraint is the answer; the same callback
-        # enforces an iteration budget when the caller gives one
-        self.feasibility_only = c.attitude_disturbance == 0 and c.peak_wrench == 0
-        self.stop = FeasibilityStop("stabilization_stop", self.n_params + self.n_extra, len(self.lbg), par.numel(),
-                                    slice(0, 0), 0.0, STOP_CONSTRAINT_TOL)
-        self.solver = ipopt_solver("stabilization", nlp, {"iteration_callback": self.stop} | ipopt_options(sc.solver))
-        self.build_time_s = time.perf_counter() - t_build
+        return cost + 1e-6 * ca.sumsqr(P), w_extra
 
     def initial_params(self, grasp: GraspState) -> Array:
         """Eq. 24 parameters of a smooth deceleration ``q̇(t) = q̇_in (1 − smoothstep(t/T_d))``.
@@ -363,8 +308,9 @@ class StabilizationProblem:
 
     def parameters(self, grasp: GraspState) -> Array:
         """The NLP's parameter vector for ``grasp``: its state, momentum and geometry."""
-        return np.concatenate([grasp.q, grasp.qd, grasp.qdd, grasp.x_base, grasp.h_world,
-                               grasp_geometry(self.scenario, grasp.T_ee_target)])
+        return self.parameter_layout.pack({"q": grasp.q, "qd": grasp.qd, "qdd": grasp.qdd, "x_base": grasp.x_base,
+                                           "h_world": grasp.h_world,
+                                           "geometry": grasp_geometry(self.scenario, grasp.T_ee_target)})
 
     def _solve(self, grasp: GraspState, warm_params: Array | None,
                max_iterations: int | None = None) -> StabilizationSolution:
@@ -380,11 +326,11 @@ class StabilizationProblem:
         stats = self.solver.stats()
         P = np.asarray(sol["x"]).ravel()[: self.n_params]
         M, _, d = (np.asarray(a).ravel() for a in self.outputs(P, par))
-        success, status = bool(stats["success"]), str(stats["return_status"])
+        success, status = bool(stats["success"]), SolveOutcome.from_ipopt(str(stats["return_status"]))
         if self.stop.stopped:
-            success, status = True, "Feasible_Point_Found"
+            success, status = True, SolveOutcome.FEASIBLE_POINT_FOUND
         elif self.stop.budget_exhausted:
-            success, status = False, "Iteration_Budget_Exhausted"
+            success, status = False, SolveOutcome.ITERATION_BUDGET_EXHAUSTED
         return StabilizationSolution(P, success, status, int(stats["iter_count"]),
                                      elapsed, self.build_time_s, float(sol["f"]), float(np.abs(M).max()),
                                      float(d.min()))

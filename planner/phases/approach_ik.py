@@ -1,0 +1,165 @@
+"""Bounded pose IK of the approach's initial guess: a compiled, projected Levenberg-Marquardt least squares.
+
+The arm's configuration ``q`` [rad] and the base offset ``(b_x, b_z)`` [m] in the orbital plane that put the
+end-effector on a pose, with the base frozen (or displaced by a given free-floating drift), within the joint
+limits and the base-offset bounds.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from planner.config.scenario import Scenario
+from planner.model.robot import fk_function
+
+Array = NDArray[np.float64]
+
+REACH_TOLERANCE = 1e-3  # pose residual [m, rad] below which a pose counts as reachable
+REGULARISATION = 0.02  # weight pulling the IK toward θ_in and the base-offset guess [1/rad, 1/m]
+# the polish keeps a little of it: with none, the redundant arm and the base drift to their bounds
+POLISH_REGULARISATION = 2e-3
+# a start whose regularised solve leaves a larger pose residual [m, rad] is not polished: the polish does not
+# bring such a start within REACH_TOLERANCE, and skipping it saves a sixth of a scan's evaluations
+POLISH_WORTHWHILE_ERROR = 0.1
+
+
+def _ik_residual_function(scenario: Scenario) -> ca.Function:
+    """``(x = [q, b_x, b_z], p_goal, R_goal, S) -> (residual, jacobian)`` of a pose IK with the base frozen.
+
+    Orientation residual ``(R_ee − R_goal) S``: S = I matches the whole orientation, S = [a 0 0] only
+    the free axis a. Smooth, and free of the spurious minima of sin-based errors at large angles.
+    """
+    sc = scenario
+    x = ca.SX.sym("x", sc.robot.n_joints + 2)
+    p_goal = ca.SX.sym("p_goal", 3)
+    R_goal = ca.SX.sym("R_goal", 3, 3)
+    S = ca.SX.sym("S", 3, 3)
+    weight = ca.SX.sym("weight")
+    dp = ca.SX.sym("drift_p", 3)  # base drift since t = 0 (free-floating), held fixed in the IK
+    dR = ca.SX.sym("drift_R", 3, 3)
+    base_given = ca.SX.sym("base_given", 2)  # used instead of x[-2:] when fix_base = 1
+    fix_base = ca.SX.sym("fix_base")
+    base = fix_base * base_given + (1 - fix_base) * x[-2:]
+    out = fk_function(sc.robot)(x[:-2])
+    p_ee = ca.vertcat(base[0], 0.0, base[1]) + dp + ca.mtimes(dR, out[-1])
+    rot = ca.reshape(ca.mtimes(ca.mtimes(dR, out[-2]) - R_goal, S), 9, 1)
+    reg = weight * ca.vertcat(x[:-2] - ca.DM(sc.q_initial), x[-2:] - ca.DM(sc.base_offset_guess_m))
+    r = ca.vertcat(p_ee - p_goal, rot, reg)
+    return ca.Function("pose_ik", [x, p_goal, R_goal, S, weight, dp, dR, base_given, fix_base],
+                       [r, ca.jacobian(r, x)])
+
+
+def _levenberg_marquardt_function(residual: ca.Function, lo: Array, hi: Array, iterations: int) -> ca.Function:
+    """``(x0, p) -> (x, pose_error)``: ``iterations`` projected Levenberg-Marquardt steps on ``residual``
+    (the :func:`_ik_residual_function` signature, its parameters packed into one vector ``p``, matrices
+    column-major), compiled into one CasADi Function; ``pose_error`` is the norm of the pose rows at x.
+
+    Each step solves ``(JᵀJ + λ D) δ = −Jᵀr`` with ``D = diag(JᵀJ)`` (Marquardt's scaling) over the
+    variables not held by an active bound (projected Newton: a variable on a bound whose gradient points
+    outward stays put), projects ``x + δ`` onto ``[lo, hi]`` and keeps it if the squared residual fell.
+    λ follows Nielsen's rule (the ratio ρ of actual to predicted decrease: λ·max(1/3, 1 − (2ρ−1)³) on
+    success; λ·ν, ν doubling, on failure). Compiled, a whole solve is one call: a scan makes hundreds of
+    these 9-unknown solves, where ``scipy.optimize.least_squares`` would iterate in Python.
+    """
+    nx = residual.size1_in(0)
+    parts = [residual.sparsity_in(i) for i in range(1, residual.n_in())]
+    p = ca.SX.sym("p", sum(sp.numel() for sp in parts))
+    args, offset = [], 0
+    for sp in parts:
+        args.append(ca.reshape(p[offset: offset + sp.numel()], sp.size1(), sp.size2()))
+        offset += sp.numel()
+    x = ca.SX.sym("x", nx)
+    lam, nu = ca.SX.sym("lambda"), ca.SX.sym("nu")
+    r, J = residual(x, *args)
+    H = ca.mtimes(J.T, J)
+    grad = ca.mtimes(J.T, r)
+    free = 1 - ca.logic_or(ca.logic_and(x <= ca.DM(lo), grad > 0), ca.logic_and(x >= ca.DM(hi), grad < 0))
+    H_free = ca.mtimes(ca.mtimes(ca.diag(free), H), ca.diag(free)) + ca.diag(1 - free)
+    delta = ca.solve(H_free + lam * (ca.diag(ca.diag(H_free)) + 1e-9 * ca.SX.eye(nx)), -free * grad)
+    x_try = ca.fmin(ca.fmax(x + delta, ca.DM(lo)), ca.DM(hi))
+    step = x_try - x
+    r_try, _ = residual(x_try, *args)
+    decrease = ca.sumsqr(r) - ca.sumsqr(r_try)
+    predicted = -(2 * ca.dot(grad, step) + ca.sumsqr(ca.mtimes(J, step)))  # of the linearised residual
+    rho = decrease / ca.fmax(predicted, 1e-300)
+    better = decrease > 0
+    lam_next = ca.if_else(better, lam * ca.fmax(1.0 / 3.0, 1 - (2 * rho - 1) ** 3), lam * nu)
+    state = ca.vertcat(x, lam, nu)
+    step_fn = ca.Function("lm_step", [state, p],
+                          [ca.vertcat(ca.if_else(better, x_try, x), ca.fmin(ca.fmax(lam_next, 1e-12), 1e12),
+                                      ca.if_else(better, 2.0, 2.0 * nu))])
+    x0 = ca.SX.sym("x0", nx)
+    start = ca.vertcat(ca.fmin(ca.fmax(x0, ca.DM(lo)), ca.DM(hi)), 1e-3, 2.0)
+    x_end = step_fn.fold(iterations)(start, ca.repmat(p, 1, iterations))[:nx]
+    r_end, _ = residual(x_end, *args)
+    return ca.Function("pose_ik_lm", [x0, p], [x_end, ca.norm_2(r_end[:12])])
+
+
+def pack_ik_parameters(*args: ArrayLike) -> Array:
+    """The parameters of :func:`_ik_residual_function` (after x), in its order, as the one vector ``p`` of
+    :func:`_levenberg_marquardt_function`: each flattened column-major, as CasADi stores a matrix."""
+    return np.concatenate([np.asarray(a, dtype=float).ravel(order="F") for a in args])
+
+
+# Levenberg-Marquardt steps per solve: enough for the scan to find the meeting times and tracking nodes a
+# converged least-squares solve finds (the projected-Newton masking is what makes so few enough)
+LM_ITERATIONS = 100
+
+
+class PoseIK:
+    """Bounded least-squares IK to one pose from a list of starts; None when unreachable."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.fn = _ik_residual_function(scenario)
+        rob = scenario.robot
+        (bx, bz) = scenario.base_offset_bounds_m
+        # a pinned base component (min = max in the config) is legal: the projection holds it there
+        self.lo = np.concatenate([rob.q_min + 1e-3, [bx[0], bz[0]]])
+        self.hi = np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]])
+        self.lm = _levenberg_marquardt_function(self.fn, self.lo, self.hi, LM_ITERATIONS)
+        self.p_joint1 = rob.p_base_joint1_m
+        self.reach_m = rob.reach_from_joint1_m
+
+    def out_of_reach(self, p_goal: Array, base_fixed: Array | None, drift: tuple[Array, Array]) -> bool:
+        """True when no configuration within the bounds puts the end-effector within REACH_TOLERANCE of
+        ``p_goal`` (m): the goal is farther than the arm's reach from every admissible first-joint origin.
+
+        Most unreachable meeting times of a scan fail this way; the least-squares solves would spend
+        ~200 evaluations from each of several starts to find the same answer.
+        """
+        # p_ee = (b_x, 0, b_z) + dp + dR (p_joint1 + r(q)) with |r(q)| ≤ reach, so the position error is at
+        # least dist((b_x, 0, b_z), rel) − reach, minimised over the admissible base offsets
+        dp, dR = drift
+        rel = p_goal - dp - dR @ self.p_joint1
+        if base_fixed is None:
+            lo = np.array([self.lo[-2], 0.0, self.lo[-1]])
+            hi = np.array([self.hi[-2], 0.0, self.hi[-1]])
+        else:
+            lo = hi = np.array([base_fixed[0], 0.0, base_fixed[1]])
+        gap = rel - np.clip(rel, lo, hi)
+        return bool(np.linalg.norm(gap) > self.reach_m + REACH_TOLERANCE)
+
+    def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array],
+              base_fixed: Array | None = None, drift: tuple[Array, Array] | None = None) -> Array | None:
+        dp, dR = drift if drift is not None else (np.zeros(3), np.eye(3))
+        fixed_base, fix = (np.zeros(2), 0.0) if base_fixed is None else (np.asarray(base_fixed, dtype=float), 1.0)
+        if self.out_of_reach(p_goal, base_fixed, (dp, dR)):
+            return None
+
+        def solve_from(x0: Array, weight: float) -> tuple[Array, float]:
+            x, error = self.lm(x0, pack_ik_parameters(p_goal, R_goal, S, weight, dp, dR, fixed_base, fix))
+            return np.asarray(x).ravel(), float(error)
+
+        for x0 in starts:
+            # regularised solve (stays near θ_in), then a polish that removes most of the regularisation's bias
+            x, error = solve_from(x0, REGULARISATION)
+            if error > POLISH_WORTHWHILE_ERROR:
+                continue
+            x, error = solve_from(x, POLISH_REGULARISATION)
+            if error < REACH_TOLERANCE:
+                if base_fixed is not None:
+                    x = np.concatenate([x[:-2], base_fixed])
+                return x
+        return None

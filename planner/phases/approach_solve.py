@@ -1,0 +1,151 @@
+"""Solving the approach NLP for one target state: its starts (warm, base pinned, scanned guesses) and IPOPT.
+
+Everything a solve depends on besides the problem is passed in: the target state, the warm start, the scan
+of meeting times (held by the caller for one plan), the tracking-rate scale and the iteration budget.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.model.target import TargetState
+from planner.nlp.outcome import SolveOutcome
+from planner.phases.approach import ApproachProblem, ApproachSolution
+from planner.phases.approach_guess import ScanOnDemand, initial_guesses
+from planner.phases.tracking_profile import TRACKING_NODES
+from planner.plan_parameters import ApproachParameters
+
+Array = NDArray[np.float64]
+
+
+def decision_vector(start: ApproachParameters | ApproachSolution) -> Array:
+    """``w`` without extras, ``[params, base offset, start delay, tracking nodes]``, of a start."""
+    return np.concatenate([start.params, start.base_offset_m, [start.start_delay_s], start.q_tracking.ravel()])
+
+
+def solve_approach(problem: ApproachProblem, state: TargetState,
+                   warm_start: ApproachParameters | ApproachSolution | None = None, max_starts: int = 3,
+                   tracking_speed_scale: float = 1.0, skip_guesses: int = 0, max_iterations: int | None = None,
+                   scan: ScanOnDemand | None = None) -> ApproachSolution:
+    """Solve ``problem`` for one observed target state.
+
+    With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that
+    fails, it starts from the ``max_starts`` best scanned initial guesses of ``scan`` (made here when not given
+    or not of this state and count), best first, less the first ``skip_guesses`` of them (the planner's next
+    grasp when a stabilization failed), and returns the first success (or the last attempt, with its failure
+    status; its ``start_guess`` says which guess). ``tracking_speed_scale`` scales the tracking-node rate
+    bounds. ``max_iterations`` (None: only the scenario's per-NLP ``max_iter``) bounds the IPOPT iterations
+    of all the starts together; a solve that spends it ends unsuccessful, status ``Iteration_Budget_Exhausted``
+    (IPOPT calls back once per iteration, and once more in a cold start's restoration phase).
+    """
+    t0 = time.perf_counter()
+    result, iterations = None, 0
+    if warm_start is None and problem.scenario.costs.approach_energy > 0 and skip_guesses == 0:
+        # Eq. 16 is smallest at the base-offset guess, but free-base starts lead IPOPT into local minima where
+        # the stopping room and the tracking rates hold the base away: solve with the base pinned first; if
+        # that succeeds, the free solve starts at its optimum
+        warm_start = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale)
+        iterations += warm_start.iterations
+        if not warm_start.success:
+            result, warm_start = warm_start, None
+    if scan is None or not scan.serves(state, max_starts):
+        scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
+    starts = [] if warm_start is None else [decision_vector(warm_start)]
+    n_warm = len(starts)
+    for attempt in range(max_starts + n_warm):
+        if attempt == len(starts):
+            starts += [g.decision_vector for g in scan.result.guesses[skip_guesses:]]
+        if attempt >= len(starts) or (attempt > 0 and time.perf_counter() - t0 > problem.scenario.solver.max_wall_s):
+            break
+        left = None if max_iterations is None else max_iterations - iterations
+        if left is not None and left <= 0:
+            break
+        result = _solve_once(problem, state, starts[attempt], tracking_speed_scale, cold=attempt >= n_warm,
+                             max_iterations=left)
+        if attempt >= n_warm:
+            result = replace(result, start_guess=skip_guesses + attempt - n_warm)
+        iterations += result.iterations
+        if result.success or problem.budget.budget_exhausted:
+            break
+    if result is None:
+        return _no_start(problem, SolveOutcome.NO_GUESS_LEFT, problem.scenario.base_offset_guess_m,
+                         time.perf_counter() - t0)
+    return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _no_start(problem: ApproachProblem, status: SolveOutcome, base_offset_m: tuple[float, float],
+              elapsed_s: float) -> ApproachSolution:
+    """A failed solution for when no NLP start exists (``status`` says why)."""
+    return ApproachSolution(np.zeros(problem.n_params), np.asarray(base_offset_m, dtype=float), 0.0,
+                            np.zeros((len(TRACKING_NODES), problem.robot.n_joints)), False, status, 0, elapsed_s,
+                            np.inf, np.nan)
+
+
+def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts: int,
+                       tracking_speed_scale: float) -> ApproachSolution:
+    """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from guesses made for that base."""
+    t0 = time.perf_counter()
+    gx, gz = problem.scenario.base_offset_guess_m
+    pinned = replace(problem.scenario, base_offset_bounds_m=((gx, gx), (gz, gz)))
+    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
+    base = problem.decision.slice("base_offset_m")
+    lbw[base] = ubw[base] = (gx, gz)
+    result, iterations = None, 0
+    for g in initial_guesses(pinned, problem.spline, state, max_starts):
+        result = _solve_once(problem, state, g.decision_vector, tracking_speed_scale, lbw, ubw, cold=True)
+        iterations += result.iterations
+        if result.success or time.perf_counter() - t0 > problem.scenario.solver.max_wall_s:
+            break
+    if result is None:
+        return _no_start(problem, SolveOutcome.NO_PINNED_START, (gx, gz), time.perf_counter() - t0)
+    return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float,
+                lbw: Array | None = None, ubw: Array | None = None, cold: bool = False,
+                max_iterations: int | None = None) -> ApproachSolution:
+    """One IPOPT run from ``w0`` ``(n_w,)``; ``cold``: starting in the restoration phase."""
+    p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
+                                       "omega_body_rad_s": state.omega_body_rad_s})
+    lbw = problem.lbw if lbw is None else lbw
+    ubw = problem.ubw if ubw is None else ubw
+    w0 = np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w])
+    if problem.n_extra:
+        w0 = np.concatenate([w0, [0.0]])
+    t0 = time.perf_counter()
+    lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
+    rates = problem.constraints.slice("tracking_rates")
+    lbg[rates] *= tracking_speed_scale
+    ubg[rates] *= tracking_speed_scale
+    solver = problem.cold_solver if cold else problem.solver
+    problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations)
+    sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
+    elapsed = time.perf_counter() - t0
+    stats = solver.stats()
+    return _solution(problem, np.asarray(sol["x"]).ravel(), np.asarray(sol["g"]).ravel(), float(sol["f"]), stats,
+                     elapsed)
+
+
+def _solution(problem: ApproachProblem, w: Array, g: Array, cost: float, stats: dict,
+              elapsed_s: float) -> ApproachSolution:
+    """The solution read off IPOPT's answer ``w`` and constraint values ``g``."""
+    d = problem.decision
+    exhausted = problem.budget.budget_exhausted
+    dists = g[problem.constraints.slice("collision")]
+    return ApproachSolution(
+        params=w[d.slice("spline_params")],
+        base_offset_m=w[d.slice("base_offset_m")],
+        start_delay_s=float(w[d.slice("start_delay_s").start]),
+        q_tracking=w[d.slice("tracking_nodes")].reshape(len(TRACKING_NODES), -1),
+        success=bool(stats["success"]) and not exhausted,
+        status=SolveOutcome.ITERATION_BUDGET_EXHAUSTED if exhausted else SolveOutcome.from_ipopt(
+            str(stats["return_status"])),
+        iterations=int(stats["iter_count"]),
+        solve_time_s=elapsed_s,
+        cost=cost,
+        min_distance_m=float(dists[problem.held_to_margin].min()),
+    )

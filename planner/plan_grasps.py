@@ -1,0 +1,188 @@
+"""The grasps one plan tries, in order: the approach's first, then those reached from its next scanned guesses.
+
+Whether the stabilization is feasible depends strongly on the grasp (its configuration and joint rates). A
+cold plan whose stabilization fails from the first grasp tries the grasps the approach reaches from its next
+scanned guesses (other meeting times), giving each stabilization :data:`STABILIZATION_BUDGET` iterations;
+when none succeeds, the first grasp's stabilization is solved again without that budget, so the plan is
+never worse than from the first grasp alone. A warm plan keeps its grasp.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.config.scenario import Scenario
+from planner.model.target import TargetMotion, TargetState
+from planner.phases.approach import ApproachProblem, ApproachSolution
+from planner.phases.approach_guess import ScanOnDemand
+from planner.phases.approach_solve import solve_approach
+from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
+from planner.phases.tracking import TrackingResult
+from planner.plan_parameters import ApproachParameters, PlanParameters
+from planner.plan_samples import PhaseSamples
+
+Array = NDArray[np.float64]
+
+TIGHTENING_ROUNDS = 2
+# the IK's rate cap absorbs a demand up to this × the limit (capped, the feedback still meets the grasp far
+# inside verify's thresholds); beyond it the lag grows and the approach is re-solved instead
+RATE_DEMAND_TOLERATED = 1.25
+TIGHTENING_MARGIN = 0.97  # a tightened rate bound sits this far below what the IK asked for
+# a cold plan whose stabilization fails tries the grasps reached from the approach's next scanned guesses, up
+# to this many guesses in all (the approach's own default number of starts)
+GRASP_GUESSES = 3
+# IPOPT iterations (coarse + full NLP) a stabilization gets while another grasp remains to be tried: successful
+# cold solves take far fewer, failing ones several times more
+STABILIZATION_BUDGET = 120
+# a retry's approach (from the next scanned guesses) gets this many times the first approach's iterations, at
+# least APPROACH_RETRY_MIN: a neighbouring meeting time is about as hard to reach as the first
+APPROACH_RETRY_FACTOR = 3
+APPROACH_RETRY_MIN = 60
+
+
+def approach_retry_budget(first_iterations: int) -> int:
+    """IPOPT iterations for the approach solve of a retry, from the first approach's iteration count."""
+    return max(APPROACH_RETRY_MIN, APPROACH_RETRY_FACTOR * first_iterations)
+
+
+class _Planner(Protocol):
+    """What the search needs of :class:`planner.plan.Planner`."""
+
+    scenario: Scenario
+    approach: ApproachProblem
+
+    @property
+    def stabilization_problem(self) -> StabilizationProblem: ...
+
+    def approach_and_tracking(self, app: ApproachSolution,
+                              motion: TargetMotion) -> tuple[PhaseSamples, TrackingResult]: ...
+
+    def candidate_from(self, app: ApproachSolution, samples: PhaseSamples, tr: TrackingResult,
+                       motion: TargetMotion) -> GraspCandidate: ...
+
+
+@dataclass
+class GraspCandidate:
+    """One grasp the approach reached: its approach, tracking and grasp state, ready to stabilize."""
+
+    planner: _Planner
+    app: ApproachSolution
+    approach_samples: PhaseSamples
+    tracking: TrackingResult
+    grasp: GraspState
+    T_body_grasp_used: Array  # (4, 4)
+
+    @property
+    def grasp_time_s(self) -> float:
+        """Grasp instant [s since the observation]."""
+        ph = self.planner.scenario.phases
+        return self.app.start_delay_s + ph.approach_s + ph.tracking_s
+
+    @property
+    def problem(self) -> StabilizationProblem:
+        """The scenario's stabilization NLP (built on first use, kept by the planner)."""
+        return self.planner.stabilization_problem
+
+    def stabilize(self, warm_params: Array | None, max_iterations: int | None) -> StabilizationSolution:
+        """The stabilization from this grasp, within ``max_iterations`` (None: the scenario's limit only)."""
+        return self.problem.solve(self.grasp, warm_params, max_iterations)
+
+
+def accumulated(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:
+    """``new``, with solve time and iterations accumulated over both solves (a warm re-solve keeps the
+    scanned guess ``old`` descends from)."""
+    return replace(new, solve_time_s=new.solve_time_s + old.solve_time_s, iterations=new.iterations + old.iterations,
+                   start_guess=new.start_guess if new.start_guess >= 0 else old.start_guess)
+
+
+class GraspSearch:
+    """One plan's search over grasps: its scan, tracking-rate scale, notes and phase times, for this plan only."""
+
+    def __init__(self, planner: _Planner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
+                 motion: TargetMotion) -> None:
+        self.planner, self.state, self.warm, self.scan, self.motion = planner, state, warm, scan, motion
+        self.tracking_speed_scale = 1.0  # of the approach's tracking-rate bounds; tightened within this plan
+        self.notes: list[str] = []
+        self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
+        self.stabilization_s = 0.0  # the phase's wall time: NLP builds (if new) and solves [s]
+
+    def timings_s(self) -> dict[str, float]:
+        """The phases' solve times so far [s]."""
+        return {"approach_s": self.approach_s, "stabilization_s": self.stabilization_s}
+
+    def run(self) -> tuple[GraspCandidate, StabilizationSolution]:
+        """The grasp the plan is made of and its stabilization, trying the grasps in order."""
+        app = self._solve_approach(self.warm.approach if self.warm is not None else None)
+        first = self._candidate(app)
+        self.approach_s += first.app.solve_time_s
+        for candidate in self._grasps(first):
+            more = self._another_grasp_remains(candidate)
+            # budgeted while another grasp remains, or the first grasp remains to fall back to
+            budget = STABILIZATION_BUDGET if more or candidate is not first else None
+            stab = self._stabilize(candidate, budget)
+            if stab.success or budget is None:
+                return candidate, stab
+            self.notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s failed within "
+                              f"{budget} iterations ({stab.status})" + ("; trying the approach's next guess" if more
+                                                                        else ""))
+        # a budgeted failure is never the answer: the first grasp gets its whole solve
+        self.notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
+                          "again without it")
+        return first, self._stabilize(first, None)
+
+    def _another_grasp_remains(self, candidate: GraspCandidate) -> bool:
+        """True when a cold plan's approach has a next scanned guess after ``candidate``'s."""
+        app = candidate.app
+        return self.warm is None and app.success and 0 <= app.start_guess < GRASP_GUESSES - 1
+
+    def _grasps(self, first: GraspCandidate) -> Iterator[GraspCandidate]:
+        """``first``, then the grasps the approach reaches from its next scanned guesses while one remains."""
+        candidate = first
+        yield candidate
+        while self._another_grasp_remains(candidate):
+            nxt = self._solve_approach(None, max_starts=GRASP_GUESSES, skip_guesses=candidate.app.start_guess + 1,
+                                       max_iterations=approach_retry_budget(first.app.iterations))
+            if not nxt.success:
+                self.approach_s += nxt.solve_time_s
+                self.notes.append(f"the approach from its next guesses failed ({nxt.status})")
+                return
+            candidate = self._candidate(nxt)
+            self.approach_s += candidate.app.solve_time_s
+            yield candidate
+
+    def _solve_approach(self, warm: ApproachParameters | None, **options: int) -> ApproachSolution:
+        """The approach NLP for this plan's state, scan and tracking-rate scale."""
+        return solve_approach(self.planner.approach, self.state, warm, tracking_speed_scale=self.tracking_speed_scale,
+                              scan=self.scan, **options)
+
+    def _stabilize(self, candidate: GraspCandidate, budget: int | None) -> StabilizationSolution:
+        t0 = time.perf_counter()
+        result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget)
+        self.stabilization_s += time.perf_counter() - t0
+        return result
+
+    def _candidate(self, app: ApproachSolution) -> GraspCandidate:
+        """Approach → tracking (re-solving the approach with tightened tracking rates if the IK asked for
+        too much) → the compound's state at the grasp."""
+        for round_ in range(TIGHTENING_ROUNDS + 1):
+            samples, tr = self.planner.approach_and_tracking(app, self.motion)
+            ratio = tr.peak_rate_demand
+            if ratio <= RATE_DEMAND_TOLERATED or round_ == TIGHTENING_ROUNDS or not app.success:
+                break
+            self.tracking_speed_scale = scale = self.tracking_speed_scale / ratio * TIGHTENING_MARGIN
+            self.notes.append(f"tracking joint rate {ratio:.3f}× the limit: approach re-solved with its tracking-rate "
+                              f"bounds scaled by {scale:.3f}")
+            retry = self._solve_approach(app.parameters)
+            if not retry.success:
+                # keep the first solution (the verifier will name its rate excess), but count the time
+                app = accumulated(app, retry)
+                self.notes.append(f"the re-solve failed ({retry.status}); the first approach is kept")
+                break
+            app = accumulated(retry, app)
+        return self.planner.candidate_from(app, samples, tr, self.motion)
