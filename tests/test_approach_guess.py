@@ -1,4 +1,4 @@
-"""The approach's initial-guess IK (planner.phases.approach_guess) on configurations the tests can check."""
+"""The approach's initial-guess IK (planner.phases.approach_ik) on configurations the tests can check."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 from planner.config.scenario import load_scenario
 from planner.model.robot import fk_function
 from planner.model.rotation import quat_to_matrix
-from planner.phases.approach_guess import REACH_TOLERANCE, _PoseIK
+from planner.phases.approach_ik import REACH_TOLERANCE, PoseIK
 
 SCENARIO_I = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "scenario_I.toml"
 
@@ -23,7 +23,7 @@ def test_pose_ik_with_a_pinned_base_reaches_the_pose_and_keeps_the_base_at_its_b
     q_goal = sc.q_initial + np.array([0.3, -0.2, 0.25, -0.3, 0.2, 0.3, -0.2])
     out = fk_function(sc.robot)(q_goal)
     R_goal, p_goal = np.asarray(out[-2]), np.asarray(out[-1]).ravel()  # base at the orbital origin, unrotated
-    x = _PoseIK(sc).solve(p_goal, R_goal, np.eye(3), [np.concatenate([sc.q_initial, [0.0, 0.0]])])
+    x = PoseIK(sc).solve(p_goal, R_goal, np.eye(3), [np.concatenate([sc.q_initial, [0.0, 0.0]])])
     assert x is not None
     assert np.abs(x[7:]).max() <= 1e-12
     out_x = fk_function(sc.robot)(x[:7])
@@ -57,7 +57,7 @@ def test_out_of_reach_never_rejects_a_reachable_goal_and_rejects_one_beyond_the_
     is never called out of reach, else the scan would silently drop meeting times. A goal just beyond
     the arm's length from the nearest admissible shoulder is rejected."""
     sc = load_scenario(SCENARIO_I)
-    ik = _PoseIK(sc)
+    ik = PoseIK(sc)
     fk = fk_function(sc.robot)
     rng = np.random.default_rng(5)
     (bx, bz) = sc.base_offset_bounds_m
@@ -89,10 +89,10 @@ def test_compiled_levenberg_marquardt_matches_scipy_on_the_scan_ik():
     for — the pose error, compared against REACH_TOLERANCE (1e-3) — to agree with scipy's to 1e-5."""
     from scipy.optimize import least_squares
 
-    from planner.phases.approach_guess import POLISH_REGULARISATION, REGULARISATION, pack_ik_parameters
+    from planner.phases.approach_ik import POLISH_REGULARISATION, REGULARISATION, pack_ik_parameters
 
     sc = load_scenario(SCENARIO_I)
-    ik = _PoseIK(sc)
+    ik = PoseIK(sc)
     fk = fk_function(sc.robot)
     rng = np.random.default_rng(11)
 

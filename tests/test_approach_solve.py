@@ -1,4 +1,4 @@
-"""The approach NLP's two starts (planner.phases.approach): cold from scanned guesses, warm from a solution."""
+"""The approach NLP's two starts (planner.phases.approach_solve): cold from scanned guesses, warm from a solution."""
 
 from __future__ import annotations
 
@@ -6,9 +6,10 @@ from pathlib import Path
 
 import pytest
 
-import planner.phases.approach as approach_module
+import planner.phases.approach_guess as approach_guess_module
 from planner.config.scenario import load_scenario
 from planner.phases.approach import ApproachProblem
+from planner.phases.approach_solve import solve_approach
 
 SCENARIO_II = Path(__file__).resolve().parents[1] / "configs" / "scenarios" / "scenario_II.toml"
 
@@ -21,18 +22,18 @@ def scenario_and_problem():
 
 def test_warm_start_at_a_solution_succeeds_without_the_guess_scan(scenario_and_problem, monkeypatch):
     """Cold solves (scanned guesses, restoration-phase start) and warm solves (normal phase) take different
-    paths through ApproachProblem.solve. Oracle: a warm start at the cold solve's own solution is
+    paths through solve_approach. Oracle: a warm start at the cold solve's own solution is
     feasible, so it must succeed by itself, without falling back to the guess scan (made to raise)."""
     sc, problem = scenario_and_problem
     state = sc.target_state.as_state()
-    cold = problem.solve(state)
+    cold = solve_approach(problem, state)
     assert cold.success, cold.status
 
-    def no_scan(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+    def no_scan(*args, **kwargs):
         raise AssertionError("the warm start failed and the solve fell back to scanned guesses")
 
-    monkeypatch.setattr(approach_module, "initial_guesses", no_scan)
-    warm = problem.solve(state, warm_start=cold)
+    monkeypatch.setattr(approach_guess_module, "reach_scan", no_scan)
+    warm = solve_approach(problem, state, warm_start=cold)
     assert warm.success, warm.status
     # a pure feasibility solve: IPOPT's barrier recentres the start inside the feasible set, so the answer
     # is near, not equal to, the start (measured: meeting time 0.04 s later)
@@ -46,13 +47,13 @@ def test_an_iteration_budget_ends_the_solve_and_is_shared_by_the_starts(scenario
     same solve runs as before, to the same answer (the callback only counts)."""
     sc, problem = scenario_and_problem
     state = sc.target_state.as_state()
-    free = problem.solve(state)
+    free = solve_approach(problem, state)
     assert free.success and free.iterations > 4
-    budgeted = problem.solve(state, max_iterations=4)
+    budgeted = solve_approach(problem, state, max_iterations=4)
     assert not budgeted.success and budgeted.status == "Iteration_Budget_Exhausted"
     # spent on the first start, so no other start is tried; a cold (restoration-phase) start calls back once
     # more than its iteration count
     assert budgeted.start_guess == 0 and budgeted.iterations in (3, 4)
-    again = problem.solve(state)
+    again = solve_approach(problem, state)
     assert again.success and again.iterations == free.iterations
     assert (again.params == free.params).all()

@@ -192,12 +192,12 @@ def test_tracking_rate_cap_scales_the_rates_and_the_feedback_still_meets_the_gra
     import planner.phases.tracking as tracking
 
     tq = table_query
-    motion = tq.planner._motion(tq.grid.state(0))
+    motion = tq.planner.motion(tq.grid.state(0))
     approach = ApproachSolution.given(tq.points[0].parameters.approach)
-    free = tq.planner._approach_and_tracking(approach, motion)[1]
+    free = tq.planner.approach_and_tracking(approach, motion)[1]
     cap = 0.9 * min(free.peak_rate_demand, tracking.RATE_CAP_FRACTION)
     monkeypatch.setattr(tracking, "RATE_CAP_FRACTION", cap)
-    capped = tq.planner._approach_and_tracking(approach, motion)[1]
+    capped = tq.planner.approach_and_tracking(approach, motion)[1]
     assert capped.peak_rate_demand > cap  # the cap was active
     assert (np.abs(capped.qd) / tq.scenario.robot.qd_max).max() <= cap + 1e-12
     assert capped.position_error_m < 1e-3 and capped.orientation_error_rad < np.radians(0.1)

@@ -106,7 +106,7 @@ def test_approach_nlp_bounds_the_gripper_handle_pair() -> None:
     layout = scene_layout(sc.robot, sc.target)
     n_d = len(problem.scene.pairs)
     k_gh = problem.scene.pairs.index(layout.gripper_handle)
-    bounds = problem.lbg[problem.n_before_dist: problem.n_before_dist + problem.n_dist].reshape(-1, n_d)
+    bounds = problem.lbg[problem.constraints.slice("collision")].reshape(-1, n_d)
     margin, b0, t2 = sc.limits.collision_margin_m, sc.approach.pregrasp_backoff_m, sc.phases.tracking_s
     back = constraint_backoff.COLLISION_M
     k = sc.approach.via_points
@@ -114,6 +114,6 @@ def test_approach_nlp_bounds_the_gripper_handle_pair() -> None:
     expected = [margin - closed_backoff_m(b0, f * t2, t2) + back for f in TRACKING_NODES]
     np.testing.assert_allclose(bounds[k:, k_gh], expected)
     assert np.all(np.delete(bounds, k_gh, axis=1) == margin + back)
-    blend = problem.lbg[problem.n_before_dist + problem.n_dist: problem.n_before_dist + problem.n_dist
-                        + len(BLEND_CHECK_NODES)]
+    blend = problem.lbg[problem.constraints.slice("blend_clearance")]
+    assert len(blend) == len(BLEND_CHECK_NODES)
     np.testing.assert_allclose(blend, [margin - closed_backoff_m(b0, f * t2, t2) + back for f in BLEND_CHECK_NODES])

@@ -1,5 +1,5 @@
 """A cold plan whose stabilization fails from its first grasp tries the grasps of the approach's next scanned
-guesses (``planner.plan``), with an iteration budget while another grasp remains, and falls back to the first
+guesses (``planner.plan_grasps``), with an iteration budget while another grasp remains, and falls back to the first
 grasp without the budget. The stabilization is replaced by a stand-in that fails or succeeds by the grasp it
 is given, so these tests check the control flow and the bookkeeping, in seconds; the real rescue of a
 scenario II state is in ``test_plan_scenarios.py`` (slow).
@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import planner.phases.approach as approach_module
+import planner.phases.approach_guess as approach_guess_module
+import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
-from planner.phases.approach_guess import initial_guesses
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
 
@@ -31,7 +31,7 @@ def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: in
     """A ``GraspCandidate.stabilize`` that records (start guess, budget, grasp time), and the NLP object used
     in ``problems``, and succeeds only from grasps reached from scanned guess ``succeed_from_guess`` or later."""
 
-    def stabilize(self: GraspCandidate, warm_params, max_iterations):  # noqa: ANN001, ANN202
+    def stabilize(self: GraspCandidate, warm_params, max_iterations):
         calls.append((self.app.start_guess, max_iterations, self.grasp_time_s))
         if problems is not None:
             problems.append(self.problem)
@@ -48,13 +48,15 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     calls: list[tuple[int, int | None, float]] = []
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
     scans = []
-    monkeypatch.setattr(approach_module, "initial_guesses", lambda *a: scans.append(a) or initial_guesses(*a))
+    reach_scan = approach_guess_module.reach_scan
+    monkeypatch.setattr(approach_guess_module, "reach_scan", lambda *a: scans.append(a) or reach_scan(*a))
     solves = []  # (iteration budget, solution) of every approach solve
-    solve = planner.approach.solve
-    monkeypatch.setattr(planner.approach, "solve",
+    solve = plan_grasps_module.solve_approach
+    monkeypatch.setattr(plan_grasps_module, "solve_approach",
                         lambda *a, **k: solves.append((k.get("max_iterations"), solve(*a, **k))) or solves[-1][1])
     plan = planner.plan(sc.target_state.as_state())
-    assert len(scans) == 1  # the retry starts from the same scan's next guess, not a new scan
+    # one scan: the reach check, the first approach and the retry from the same scan's next guess
+    assert len(scans) == 1
     assert calls[0][:2] == (0, STABILIZATION_BUDGET)  # the first grasp, under the budget: another remains
     assert len(calls) == 2 and calls[1][0] >= 1
     # budgeted as well: the first grasp would remain to fall back to

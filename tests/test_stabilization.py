@@ -68,7 +68,10 @@ def test_constraint_jacobian_matches_central_differences(problem, grasp):
     P = problem.initial_params(grasp)
     g_fun = problem.solver.get_function("nlp_g")
     J = np.asarray(problem.solver.get_function("nlp_jac_g")(P, par)[1])
-    rows = np.r_[0:problem.n_box, problem.n_box + problem.n_dist:len(problem.lbg)]
+    g_rows = problem.constraints
+    rows = np.r_[g_rows.slice("joint_positions"), g_rows.slice("joint_velocities"), g_rows.slice("grasp_torque"),
+                 g_rows.slice("grasp_force")]
+    assert g_rows.slice("grasp_force").stop == len(problem.lbg)  # every row but the distances
     step = 1e-5
 
     def g(x: np.ndarray) -> np.ndarray:
