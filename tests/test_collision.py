@@ -32,7 +32,7 @@ BOX_TOL_M = 1e-9
 
 
 # ----------------------------------------------------------------------------------------------- helpers
-def closest_points_segment_segment(p0a, p1a, p0b, p1b) -> tuple[Array, Array]:  # noqa: ANN001
+def closest_points_segment_segment(p0a, p1a, p0b, p1b) -> tuple[Array, Array]:
     """Reference closest points of two segments (Ericson, RTCD §5.1.9), scalar and written for the tests."""
     P0a, P0b = np.asarray(p0a, dtype=float), np.asarray(p0b, dtype=float)
     da, db = np.asarray(p1a, dtype=float) - P0a, np.asarray(p1b, dtype=float) - P0b
@@ -56,7 +56,7 @@ def closest_points_segment_segment(p0a, p1a, p0b, p1b) -> tuple[Array, Array]:  
     return P0a + s * da, P0b + t * db
 
 
-def capsule_capsule_distance(p0a, p1a, ra: float, p0b, p1b, rb: float) -> float:  # noqa: ANN001
+def capsule_capsule_distance(p0a, p1a, ra: float, p0b, p1b, rb: float) -> float:
     """Reference signed distance of two capsules: segment distance minus the radii (exact for swept sets)."""
     ca, cb = closest_points_segment_segment(p0a, p1a, p0b, p1b)
     return float(np.linalg.norm(cb - ca)) - float(ra) - float(rb)

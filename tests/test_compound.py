@@ -24,7 +24,7 @@ def scenario_II():
     return load_scenario(ROOT / "configs" / "scenarios" / "scenario_II.toml")
 
 
-def _grasps(scenario) -> list[np.ndarray]:  # noqa: ANN001
+def _grasps(scenario) -> list[np.ndarray]:
     """T_ee_target of the scenario's grasp at three free-axis angles (rad)."""
     T_bg = scenario.target.grasp.T_body_grasp
     axis = scenario.target.grasp.free_axis

@@ -24,11 +24,11 @@ CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 
 @pytest.fixture(scope="module", params=("scenario_I", "scenario_II"))
-def scenario(request):  # noqa: ANN001, ANN201
+def scenario(request):
     return load_scenario(CONFIGS / "scenarios" / f"{request.param}.toml")
 
 
-def test_layout_has_the_handle_as_a_body_on_the_target_frame(scenario) -> None:  # noqa: ANN001
+def test_layout_has_the_handle_as_a_body_on_the_target_frame(scenario) -> None:
     """37 pairs: 21 chaser pairs, every chaser body against the target and against the handle."""
     layout = scene_layout(scenario.robot, scenario.target)
     assert len(layout.pairs) == 37
@@ -43,7 +43,7 @@ def test_layout_has_the_handle_as_a_body_on_the_target_frame(scenario) -> None: 
     assert build_scene(scenario).pairs == tuple(p for p in layout.pairs if p != layout.gripper_handle)
 
 
-def test_target_without_handle_has_no_exempt_pair(scenario) -> None:  # noqa: ANN001
+def test_target_without_handle_has_no_exempt_pair(scenario) -> None:
     target = replace(scenario.target, handle_shapes=frozenset())
     layout = scene_layout(scenario.robot, target)
     assert layout.gripper_handle is None and len(layout.pairs) == 29
@@ -69,7 +69,7 @@ def test_closed_backoff_goes_from_zero_to_all_of_it() -> None:
     assert np.all(np.diff(values) >= 0.0)
 
 
-def test_verify_clearances_follow_the_rule_over_a_plan(scenario) -> None:  # noqa: ANN001
+def test_verify_clearances_follow_the_rule_over_a_plan(scenario) -> None:
     """verify's (n, m) bounds: the gripper–handle column follows the rule; every other column is the margin."""
     layout = scene_layout(scenario.robot, scenario.target)
     phases = {"approach": (0.0, 10.0), "tracking": (10.0, 15.0), "stabilization": (15.0, 60.0)}

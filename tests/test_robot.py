@@ -21,7 +21,7 @@ def test_default_robot_structure(robot):
     assert 850 < robot.total_mass_kg < 900
     assert isinstance(robot.collision_shapes[0][0].shape, Box)
     assert all(isinstance(s[0].shape, Capsule) for s in robot.collision_shapes[1:])
-    # alternating ±170° / ±120° limits, 20 °/s velocity limits (DESIGN §5)
+    # alternating ±170° / ±120° limits, 20 °/s velocity limits (the paper's scenarios)
     np.testing.assert_allclose(np.degrees(robot.q_max), [170, 120, 170, 120, 170, 120, 170])
     np.testing.assert_allclose(np.degrees(robot.qd_max), 20.0)
 

@@ -34,7 +34,7 @@ class _CountingMotion:
         self.row_by_row = row_by_row
         self.calls = 0
 
-    def grasp_pose(self, times_s):  # noqa: ANN001, ANN201 - the TargetMotion signature
+    def grasp_pose(self, times_s):
         self.calls += 1
         times = np.atleast_1d(np.asarray(times_s, dtype=float))
         if not self.row_by_row:
@@ -42,7 +42,7 @@ class _CountingMotion:
         rows = [self.motion.grasp_pose(t) for t in times]
         return np.concatenate([r[0] for r in rows]), np.concatenate([r[1] for r in rows])
 
-    def grasp_twist(self, times_s):  # noqa: ANN001, ANN201
+    def grasp_twist(self, times_s):
         return self.motion.grasp_twist(times_s)
 
 

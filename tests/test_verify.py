@@ -47,7 +47,7 @@ def baseline_path(t: float) -> tuple[np.ndarray, np.ndarray]:
     return Q_GRASP + (1 - S) * Q_OFFSET, -dS / (T_APP + T_TR) * Q_OFFSET
 
 
-def with_bump(path, joint: int, amplitude: float, t_start: float, duration: float):  # noqa: ANN001, ANN201
+def with_bump(path, joint: int, amplitude: float, t_start: float, duration: float):
     """``path`` plus ``amplitude · sin²(π u)`` on one joint for u = (t − t_start)/duration ∈ [0, 1]."""
 
     def bumped(t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +90,7 @@ class Builder:
                                                    handle_shapes=frozenset()))
         self.state = TargetState(matrix_to_quat(T_world_body[:3, :3]), np.zeros(3))
 
-    def base(self, path, stabilization_ff: FreeFloatingModel | None = None) -> np.ndarray:  # noqa: ANN001
+    def base(self, path, stabilization_ff: FreeFloatingModel | None = None) -> np.ndarray:
         """Base poses along ``path``: zero chaser momentum to the grasp, then the compound's (zero here)."""
         k = self.k_grasp
         x = np.empty((len(self.t), 7))
@@ -98,7 +98,7 @@ class Builder:
         x[k:] = (stabilization_ff or self.ff_compound).integrate_base(self.t[k:], path, x[k], np.zeros(6))
         return x
 
-    def plan(self, path=baseline_path, x_base: np.ndarray | None = None, **changes) -> GraspPlan:  # noqa: ANN001
+    def plan(self, path=baseline_path, x_base: np.ndarray | None = None, **changes) -> GraspPlan:
         q, qd = (np.array(a) for a in zip(*(path(ti) for ti in self.t), strict=True))
         x = self.base(path) if x_base is None else x_base
         k = self.k_grasp

@@ -309,7 +309,7 @@ def builder() -> Builder:
     return Builder()
 
 
-def held(path, joint: int, value: float):  # noqa: ANN001, ANN201
+def held(path, joint: int, value: float):
     """``path`` with one joint (index from 0) held at ``value`` (rad), at rest."""
 
     def f(t: float) -> tuple[Array, Array]:
@@ -320,7 +320,7 @@ def held(path, joint: int, value: float):  # noqa: ANN001, ANN201
     return f
 
 
-def placed_for(builder: Builder, path) -> Builder:  # noqa: ANN001
+def placed_for(builder: Builder, path) -> Builder:
     """A copy of ``builder`` whose static target's grasp frame is the ee frame of ``path`` at t_grasp."""
     out = copy.copy(builder)
     k = builder.k_grasp

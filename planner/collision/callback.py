@@ -168,6 +168,6 @@ class SceneDistanceCallback(ca.Callback):
         return self._jac
 
 
-def pose_vector(R, p):  # noqa: ANN001, ANN201 - SX/MX/DM in, same out
+def pose_vector(R: ca.SX | ca.MX | ca.DM, p: ca.SX | ca.MX | ca.DM) -> ca.SX | ca.MX | ca.DM:
     """``[vec(R) column-major; p]`` — the per-frame block of the callback input."""
     return ca.vertcat(ca.reshape(R, 9, 1), p)

@@ -10,11 +10,9 @@ body B by ``+ε n`` (or body A by ``-ε n``) increases the distance by ``ε`` to
 Engine
 ------
 Distances come from :mod:`planner.collision.closed_form`: exact signed distances of boxes and capsules in
-closed form, vectorised over many poses, so one call sweeps every pair at every via point of an NLP.
-Engines measured and not used: python-fcl's signed path overstates distances in aligned poses (by up to
-1.9 m for a box and a capsule side by side); coal (shipped with ``pin``) is close but not exact in every pose
-(near-parallel pairs off by up to 1.4e-6 m, normals off by up to 0.26 rad at touching faces, and a non-finite
-distance on one near-parallel contact of ``tests/test_distance_truth.py``). ``verify`` checks every plan with
+closed form, vectorised over many poses, so one call sweeps every pair at every via point of an NLP; the
+general-purpose engines (python-fcl, coal) are not exact in every pose the NLPs meet (aligned and
+near-parallel shapes, touching faces). ``verify`` checks every plan with
 an engine of its own (:mod:`planner.verify.distance`), so an error in this one is caught by the other.
 """
 

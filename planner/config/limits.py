@@ -53,7 +53,7 @@ LIMITS: dict[str, Limit] = {
 }
 MAX_SHAPES = 100  # target collision shapes (each adds 7+ body pairs to every collision check)
 MAX_CONFIG_BYTES = 1 << 20  # a config file is a few kB; a larger one is not a config
-MAX_GRID_POINTS = 100_000  # ~5 days of a 1000-core cluster at the measured ~20 points/h per core
+MAX_GRID_POINTS = 100_000  # ~5 days of a 1000-core cluster at ~20 points/h per core
 
 
 def limit_of(field: str) -> Limit | None:

@@ -33,9 +33,11 @@ from planner.model.robot import RobotModel, chain_kinematics
 from planner.nlp.compiled import compiled
 
 Array = NDArray[np.float64]
+Symbolic = ca.SX | ca.MX | ca.DM  # a CasADi expression: the functions here build SX/MX graphs or evaluate on DM
 
 
-def _skew(v):  # noqa: ANN001, ANN202 - works on SX/MX/DM 3-vectors
+def _skew(v: Symbolic) -> Symbolic:
+    """Cross-product matrix ``[v]×`` of a 3-vector (SX, MX or DM)."""
     return ca.vertcat(
         ca.horzcat(0, -v[2], v[1]),
         ca.horzcat(v[2], 0, -v[0]),
@@ -43,7 +45,7 @@ def _skew(v):  # noqa: ANN001, ANN202 - works on SX/MX/DM 3-vectors
     )
 
 
-def quat_to_rotation_sym(quat):  # noqa: ANN001, ANN201
+def quat_to_rotation_sym(quat: Symbolic) -> Symbolic:
     """Rotation matrix of a symbolic ``[w, x, y, z]`` quaternion (normalised inside)."""
     n = ca.sqrt(ca.sumsqr(quat))
     w, x, y, z = quat[0] / n, quat[1] / n, quat[2] / n, quat[3] / n
@@ -54,7 +56,7 @@ def quat_to_rotation_sym(quat):  # noqa: ANN001, ANN201
     )
 
 
-def _quat_times_pure(quat, omega):  # noqa: ANN001, ANN202
+def _quat_times_pure(quat: Symbolic, omega: Symbolic) -> Symbolic:
     """``quat ⊗ [0, ω]``."""
     w, x, y, z = quat[0], quat[1], quat[2], quat[3]
     a, b, c = omega[0], omega[1], omega[2]
@@ -70,17 +72,17 @@ def _quat_times_pure(quat, omega):  # noqa: ANN001, ANN202
 class MomentumMap:
     """Symbolic pieces of the momentum map for joint angles ``q`` (base frame, see module doc)."""
 
-    mass_kg: object  # kg, a number or a symbol
-    r_g: object  # system COM
-    inertia_g: object  # Ĩ, system inertia about the COM
-    J_Tw: object  # 3×n
-    H_L: object  # 3×n, H_wq − [r_g]× J_Tw
-    p_ee: object
-    R_ee: object
-    J_m_ee: object  # 6×n, ee twist (base frame) for a fixed base
+    mass_kg: float | Symbolic  # [kg], a number or a symbol
+    r_g: Symbolic  # (3,) system COM [m]
+    inertia_g: Symbolic  # (3, 3) Ĩ, system inertia about the COM [kg·m²]
+    J_Tw: Symbolic  # (3, n)
+    H_L: Symbolic  # (3, n), H_wq − [r_g]× J_Tw
+    p_ee: Symbolic  # (3,) [m]
+    R_ee: Symbolic  # (3, 3)
+    J_m_ee: Symbolic  # (6, n), ee twist (base frame) for a fixed base
 
 
-def momentum_map(robot: RobotModel, q) -> MomentumMap:  # noqa: ANN001
+def momentum_map(robot: RobotModel, q: ca.SX | ca.MX) -> MomentumMap:
     """Build the momentum-map quantities of the module docstring for symbolic ``q`` (rad)."""
     kin = chain_kinematics(robot, q)
     n = robot.n_joints
@@ -116,14 +118,14 @@ def momentum_map(robot: RobotModel, q) -> MomentumMap:  # noqa: ANN001
     return MomentumMap(M, r_g, inertia_g, J_Tw, H_L, kin.p_ee, kin.R_ee, ca.vertcat(J_T_ee, J_R_ee))
 
 
-def base_twist_sym(mm: MomentumMap, qd, h_base):  # noqa: ANN001, ANN201
+def base_twist_sym(mm: MomentumMap, qd: Symbolic, h_base: Symbolic) -> Symbolic:
     """Base twist ``[v_b; ω_b]`` (base frame) that gives momentum ``h_base`` at joint rates ``qd``."""
     omega = ca.solve(mm.inertia_g, h_base[3:] - ca.mtimes(mm.H_L, qd))
     v = (h_base[:3] - ca.mtimes(mm.J_Tw, qd)) / mm.mass_kg + ca.cross(mm.r_g, omega)
     return ca.vertcat(v, omega)
 
 
-def generalized_jacobian_sym(mm: MomentumMap):  # noqa: ANN201
+def generalized_jacobian_sym(mm: MomentumMap) -> tuple[Symbolic, Symbolic]:
     """``(J*, D)`` with ee twist (base frame) ``= J* q̇ + D h_base``; J* is 6×n, D is 6×6."""
     Ig_inv = ca.inv(mm.inertia_g)
     Sg = _skew(mm.r_g)
@@ -139,7 +141,7 @@ def generalized_jacobian_sym(mm: MomentumMap):  # noqa: ANN201
     return J_star, D
 
 
-def base_pose_rate_sym(mm: MomentumMap, x_base, qd, h_world):  # noqa: ANN001, ANN201
+def base_pose_rate_sym(mm: MomentumMap, x_base: Symbolic, qd: Symbolic, h_world: Symbolic) -> Symbolic:
     """Time derivative of the base pose ``x = [p_world_base (3), quat_world_base (4)]``."""
     R = quat_to_rotation_sym(x_base[3:7])
     h_base = ca.vertcat(ca.mtimes(R.T, h_world[:3]), ca.mtimes(R.T, h_world[3:]))

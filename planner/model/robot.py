@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from planner.errors import ConfigError
+from planner.errors import ConfigFileError, FieldTypeError, RobotModelError
 from planner.model.rotation import rpy_to_matrix
 from planner.model.shapes import Box, Capsule, PlacedShape, make_transform
 
@@ -150,63 +150,22 @@ def _add_inertias(a: BodyInertia, b: BodyInertia, T_a_b: Array) -> BodyInertia:
 def load_robot(urdf_path: str | Path, ee_frame: str = "grasp_frame") -> RobotModel:
     """Parse a URDF into a :class:`RobotModel` (free-flyer root + serial revolute chain).
 
-    Raises :class:`ConfigError` naming the file and the offending element when the URDF is missing,
-    malformed, not a single serial chain of revolute joints, or lacks the ``ee_frame``.
+    Raises :class:`~planner.errors.ConfigFileError` when the URDF is missing or unreadable, and
+    :class:`~planner.errors.RobotModelError` naming the offending element when it is not a single serial chain
+    of revolute joints or lacks the ``ee_frame``.
     """
-    path = Path(urdf_path)
     src = str(urdf_path)
-    if not path.is_file():
-        raise ConfigError(src, "", "robot URDF file not found")
-    try:
-        tree = ET.parse(path)
-    except ET.ParseError as exc:
-        raise ConfigError(src, "", f"not valid XML ({exc})") from None
-    try:
-        model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
-    except (RuntimeError, ValueError) as exc:  # what pinocchio raises on a bad URDF
-        raise ConfigError(src, "", f"pinocchio cannot read it ({str(exc).splitlines()[0]})") from None
-
+    tree, model = _read_urdf(Path(urdf_path), src)
+    body_names = [_body_of_joint(model, 1)]
+    inertias = [_inertia(model.inertias[1])]
     joints: list[ArmJoint] = []
-    inertias: list[BodyInertia] = []
-    body_names: list[str] = []
-    for jid in range(1, model.njoints):
-        jm = model.joints[jid]
-        if jid == 1:
-            body_names.append(_body_of_joint(model, jid))
-            inertias.append(_inertia(model.inertias[jid]))
-            continue
-        if model.parents[jid] != jid - 1:
-            raise ConfigError(src, f"joint {model.names[jid]}", "the arm must be a single serial chain")
-        axis = _revolute_axis(jm)
-        if axis is None:
-            raise ConfigError(src, f"joint {model.names[jid]}",
-                              f"only revolute joints are supported, got {jm.shortname()}")
-        iq = jm.idx_q
-        iv = jm.idx_v
-        placement = model.jointPlacements[jid]
-        joints.append(ArmJoint(
-            name=model.names[jid],
-            T_parent_joint=make_transform(placement.rotation, placement.translation),
-            axis=axis,
-            lower_rad=float(model.lowerPositionLimit[iq]),
-            upper_rad=float(model.upperPositionLimit[iq]),
-            velocity_rad_s=float(model.velocityLimit[iv]),
-        ))
+    for jid in range(2, model.njoints):
+        joints.append(_arm_joint(model, jid, src))
         body_names.append(_body_of_joint(model, jid))
         inertias.append(_inertia(model.inertias[jid]))
-        if not joints[-1].lower_rad < joints[-1].upper_rad:
-            raise ConfigError(src, f"joint {model.names[jid]}.limit", "lower must be < upper")
-        if not joints[-1].velocity_rad_s > 0:
-            raise ConfigError(src, f"joint {model.names[jid]}.limit.velocity", "must be > 0")
+        _check_limits(joints[-1], src)
     if not joints:
-        raise ConfigError(src, "", "no revolute joints found")
-    if not model.existFrame(ee_frame):
-        raise ConfigError(src, "ee_frame", f"frame {ee_frame!r} not found in the URDF")
-    frame = model.frames[model.getFrameId(ee_frame)]
-    if frame.parentJoint != model.njoints - 1:
-        raise ConfigError(src, "ee_frame", f"frame {ee_frame!r} must be attached to the last link")
-    T_last_ee = make_transform(frame.placement.rotation, frame.placement.translation)
-    shapes = _collision_shapes(tree, body_names, src)
+        raise RobotModelError(src, "", "no revolute joints found")
     return RobotModel(
         urdf_path=src,
         pin_model=model,
@@ -214,9 +173,62 @@ def load_robot(urdf_path: str | Path, ee_frame: str = "grasp_frame") -> RobotMod
         joints=tuple(joints),
         inertias=tuple(inertias),
         ee_frame=ee_frame,
-        T_last_ee=T_last_ee,
-        collision_shapes=shapes,
+        T_last_ee=_ee_placement(model, ee_frame, src),
+        collision_shapes=_collision_shapes(tree, body_names, src),
     )
+
+
+def _read_urdf(path: Path, src: str) -> tuple[ET.ElementTree, pin.Model]:
+    """The URDF's XML tree and its pinocchio model with a free-flyer root."""
+    if not path.is_file():
+        raise ConfigFileError(src, "robot URDF file not found")
+    try:
+        tree = ET.parse(path)
+    except ET.ParseError as exc:
+        raise ConfigFileError(src, f"not valid XML ({exc})") from None
+    try:
+        model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+    except (RuntimeError, ValueError) as exc:  # what pinocchio raises on a bad URDF
+        raise ConfigFileError(src, f"pinocchio cannot read it ({str(exc).splitlines()[0]})") from None
+    return tree, model
+
+
+def _arm_joint(model: pin.Model, jid: int, src: str) -> ArmJoint:
+    """Joint ``jid`` of the chain (its parent must be joint ``jid − 1``), with its placement, axis and limits."""
+    jm = model.joints[jid]
+    if model.parents[jid] != jid - 1:
+        raise RobotModelError(src, f"joint {model.names[jid]}", "the arm must be a single serial chain")
+    axis = _revolute_axis(jm)
+    if axis is None:
+        raise RobotModelError(src, f"joint {model.names[jid]}",
+                              f"only revolute joints are supported, got {jm.shortname()}")
+    placement = model.jointPlacements[jid]
+    return ArmJoint(
+        name=model.names[jid],
+        T_parent_joint=make_transform(placement.rotation, placement.translation),
+        axis=axis,
+        lower_rad=float(model.lowerPositionLimit[jm.idx_q]),
+        upper_rad=float(model.upperPositionLimit[jm.idx_q]),
+        velocity_rad_s=float(model.velocityLimit[jm.idx_v]),
+    )
+
+
+def _check_limits(joint: ArmJoint, src: str) -> None:
+    """A joint's position range must be non-empty and its velocity limit positive."""
+    if not joint.lower_rad < joint.upper_rad:
+        raise RobotModelError(src, f"joint {joint.name}.limit", "lower must be < upper")
+    if not joint.velocity_rad_s > 0:
+        raise RobotModelError(src, f"joint {joint.name}.limit.velocity", "must be > 0")
+
+
+def _ee_placement(model: pin.Model, ee_frame: str, src: str) -> Array:
+    """(4, 4) pose [m] of the ``ee_frame`` in the last link's frame; the frame must be on the last link."""
+    if not model.existFrame(ee_frame):
+        raise RobotModelError(src, "ee_frame", f"frame {ee_frame!r} not found in the URDF")
+    frame = model.frames[model.getFrameId(ee_frame)]
+    if frame.parentJoint != model.njoints - 1:
+        raise RobotModelError(src, "ee_frame", f"frame {ee_frame!r} must be attached to the last link")
+    return make_transform(frame.placement.rotation, frame.placement.translation)
 
 
 def _revolute_axis(jm: pin.JointModel) -> Array | None:
@@ -234,7 +246,7 @@ def _body_of_joint(model: pin.Model, jid: int) -> str:
     for f in model.frames:
         if f.type == pin.FrameType.BODY and f.parentJoint == jid and np.allclose(f.placement.homogeneous, np.eye(4)):
             return f.name
-    raise ConfigError("URDF", f"joint {model.names[jid]}", "no link attached")
+    raise RobotModelError("URDF", f"joint {model.names[jid]}", "no link attached")
 
 
 def _inertia(inertia: pin.Inertia) -> BodyInertia:
@@ -260,15 +272,16 @@ def _collision_shapes(tree: ET.ElementTree, body_names: list[str], src: str) -> 
                 r = float(cyl.get("radius", "nan"))
                 length = float(cyl.get("length", "nan"))
                 if not (r > 0 and length >= 0):
-                    raise ConfigError(src, f"link {body} collision {name}", "capsule needs radius > 0 and length >= 0")
+                    raise RobotModelError(src, f"link {body} collision {name}",
+                                          "capsule needs radius > 0 and length >= 0")
                 shapes.append(PlacedShape(name, Capsule(r, length), T))
             elif box is not None:
                 size = _floats(box.get("size", ""), src, f"{body}.{name}.size")
                 if len(size) != 3 or min(size) <= 0:
-                    raise ConfigError(src, f"link {body} collision {name}", "box size needs 3 positive numbers")
+                    raise RobotModelError(src, f"link {body} collision {name}", "box size needs 3 positive numbers")
                 shapes.append(PlacedShape(name, Box(tuple(size)), T))
             else:
-                raise ConfigError(src, f"link {body} collision {name}",
+                raise RobotModelError(src, f"link {body} collision {name}",
                                   "only <box> and <cylinder> (capsule) are supported")
         result.append(tuple(shapes))
     return tuple(result)
@@ -278,7 +291,7 @@ def _floats(text: str, src: str, field: str) -> list[float]:
     try:
         return [float(x) for x in text.split()]
     except ValueError:
-        raise ConfigError(src, field, f"expected numbers, got {text!r}") from None
+        raise FieldTypeError(src, field, f"expected numbers, got {text!r}", text) from None
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -318,12 +331,12 @@ class ChainKinematics:
     ``R_ee``, ``p_ee``: end-effector frame.
     """
 
-    R: list
-    p: list
-    axes_base: list
-    origins_base: list
-    R_ee: object
-    p_ee: object
+    R: list[ca.SX | ca.MX]  # (3, 3) each
+    p: list[ca.SX | ca.MX]  # (3,) each [m]
+    axes_base: list[ca.SX | ca.MX]
+    origins_base: list[ca.SX | ca.MX]
+    R_ee: ca.SX | ca.MX
+    p_ee: ca.SX | ca.MX
 
 
 def chain_kinematics(robot: RobotModel, q: ca.SX | ca.MX) -> ChainKinematics:

@@ -14,7 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-def _attitude_rate(inertia_body: NDArray[np.float64], x):  # noqa: ANN001, ANN202
+def _attitude_rate(inertia_body: NDArray[np.float64], x: ca.SX | ca.MX) -> ca.SX | ca.MX:
+    """``[q̇; ω̇]`` of the 7-state ``x = [q_world_body (4), ω_body (3)]`` [rad/s], torque-free."""
     q, w = x[:4], x[4:7]
     inertia = ca.DM(inertia_body)
     w_dot = ca.solve(inertia, -ca.cross(w, ca.mtimes(inertia, w)))

@@ -89,9 +89,10 @@ class TrackingController:
 
     def simulate(self, motion: TargetMotion, t_start_s: float, q0: Array, x_base0: Array,
                  q_nodes: Array | None = None) -> TrackingResult:
-        """Run the tracking phase from the approach end state (absolute start time ``t_start_s``).
+        """Run the tracking phase from the approach end state (absolute start time ``t_start_s`` [s]).
 
-        ``q_nodes`` (len(TRACKING_NODES), 7): the approach NLP's configurations at the tracking nodes; the
+        ``q0`` (7,) [rad] and ``x_base0`` (7,) ``[p_world_base, quat_world_base]`` are the approach's end.
+        ``q_nodes`` (len(TRACKING_NODES), 7) [rad]: the approach NLP's configurations at the tracking nodes; the
         null-space motion is pulled toward a C¹ interpolation of them (a posture potential, Eq. 7), so
         the IK follows the path whose limits and clearances the NLP checked.
         """
@@ -99,98 +100,20 @@ class TrackingController:
         T = sc.phases.tracking_s
         steps = int(np.ceil(T / sc.tracking.step_s))
         dt = T / steps
-        axis = sc.target.grasp.free_axis
         R_ee0, p_ee0 = (np.asarray(a) for a in self.kinematics(q0, x_base0)[1:3])
-        p_ee0 = p_ee0.ravel()
-        R_g0, _ = (a[0] for a in motion.grasp_pose(t_start_s))
-        psi = free_axis_angle(R_g0, R_ee0, axis)
-        R_free = np.eye(3) if axis is None else axis_angle_to_matrix(axis, psi)
-        d0 = sc.approach.pregrasp_backoff_m
-        K = sc.tracking.pose_gain_per_s
-        kn = sc.tracking.nullspace_gain
-        peak_demand = 0.0
-
-        # the target's grasp frame at every time the integration below asks for, in one vectorised call
-        # (it does not depend on the chaser; the per-call overhead was a third of the phase's time)
-        stages = _stage_times(steps, dt)
-        grasp_at = _grasp_poses_at(motion, t_start_s, [*stages, *(u for t in stages for u in _difference_times(t))])
-        desired_at: dict[float, tuple[Array, Array]] = {}
-
-        def desired(t: float) -> tuple[Array, Array]:
-            if t in desired_at:
-                return desired_at[t]
-            R_g, p_g = grasp_at[t] if t in grasp_at else (a[0] for a in motion.grasp_pose(t_start_s + t))
-            R_G = R_g @ R_free
-            d = backoff_m(d0, t, T)
-            s = blend(t, T)
-            p = (1 - s) * p_ee0 + s * (p_g - d * R_G[:, 2])
-            R = R_ee0 @ pin.exp3(s * pin.log3(R_ee0.T @ R_G))
-            desired_at[t] = R, p
-            return R, p
-
-        def desired_twist(t: float) -> Array:
-            t_plus, t_minus = _difference_times(t)
-            R_p, p_p = desired(t_plus)
-            R_m, p_m = desired(t_minus)
-            h = FD_STEP_S + min(t, FD_STEP_S)
-            return np.concatenate([(p_p - p_m) / h, pin.log3(R_p @ R_m.T) / h])
-
-        q_ref = None
-        if q_nodes is not None:
-            node_t = np.array([0.0, *(f * T for f in TRACKING_NODES)])
-            node_q = np.vstack([q0, q_nodes])
-            slopes = np.gradient(node_q, node_t, axis=0)
-            slopes[0] = 0.0  # the approach ends at rest
-            q_ref = CubicHermiteSpline(node_t, node_q, slopes)
-            q_ref_d = q_ref.derivative()
-
-        def rates(t: float, q: Array, x: Array) -> tuple[Array, Array]:
-            nonlocal peak_demand
-            J, R_ee, p_ee, grad_w = (np.asarray(a) for a in self.kinematics(q, x))
-            R_d, p_d = desired(t)
-            e = np.concatenate([p_d - p_ee.ravel(), pin.log3(R_d @ R_ee.T)])
-            ramp = gain_ramp(t, T)
-            J_pinv = np.linalg.pinv(J)
-            qd = J_pinv @ (desired_twist(t) + K * ramp * e)
-            null = kn * grad_w.ravel()
-            if q_ref is not None:
-                null = null + q_ref_d(t) + K * (q_ref(t) - q)
-            qd += (np.eye(len(q)) - J_pinv @ J) @ (ramp * null)
-            # rate saturation: scale the whole q̇ (direction kept) into the limits; the pose feedback then
-            # recovers the short lag of a blend whose peak slightly exceeds what the approach NLP modelled.
-            # A smooth cap, q̇ / (1 + r^p)^(1/p) with r the p-norm of q̇/cap: |q̇ᵢ| < cap always, q̈ stays
-            # continuous (a hard min() kinks it, and central differences of the base pose then lose O(dt²)),
-            # and below 0.85 of the cap it changes q̇ by < 1e-4 relative (the grasp, ≤ 0.8 of the limits)
-            demand = np.abs(qd) / sc.robot.qd_max
-            peak_demand = max(peak_demand, float(demand.max()))
-            r = float(np.sum((demand / RATE_CAP_FRACTION) ** RATE_CAP_POWER) ** (1.0 / RATE_CAP_POWER))
-            qd = qd / (1.0 + r**RATE_CAP_POWER) ** (1.0 / RATE_CAP_POWER)
-            xd = _base_rate(self.ff, q, qd, x)
-            return qd, xd
-
+        desired = _DesiredPose(sc, motion, t_start_s, R_ee0, p_ee0.ravel(), _stage_times(steps, dt))
+        law = _RateLaw(self, desired, _posture_reference(q0, q_nodes, T))
         ts = t_start_s + dt * np.arange(steps + 1)
-        qs = np.empty((steps + 1, len(q0)))
-        qds = np.empty_like(qs)
-        xs = np.empty((steps + 1, 7))
-        qs[0], xs[0] = q0, x_base0
-        k1q, k1x = rates(0.0, q0, x_base0)
-        qds[0] = k1q
-        for i in range(steps):
-            t_mid, t_next = stages[2 * i + 1], stages[2 * i + 2]
-            k2q, k2x = rates(t_mid, qs[i] + dt / 2 * k1q, xs[i] + dt / 2 * k1x)
-            k3q, k3x = rates(t_mid, qs[i] + dt / 2 * k2q, xs[i] + dt / 2 * k2x)
-            k4q, k4x = rates(t_next, qs[i] + dt * k3q, xs[i] + dt * k3x)
-            qs[i + 1] = qs[i] + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
-            xn = xs[i] + dt / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
-            xn[3:] /= np.linalg.norm(xn[3:])
-            xs[i + 1] = xn
-            k1q, k1x = rates(t_next, qs[i + 1], xs[i + 1])
-            qds[i + 1] = k1q
+        qs, qds, xs, xd_end = _integrate(law, desired.stages, steps, dt, q0, x_base0)
         # joint acceleration at the grasp instant: derivative of q̇ along the closed-loop flow
         eps = 1e-4
-        qd_back, _ = rates(T - eps, qs[-1] - eps * qds[-1], xs[-1] - eps * k1x)
+        qd_back, _ = law.rates(T - eps, qs[-1] - eps * qds[-1], xs[-1] - eps * xd_end)
         qdd_end = (qds[-1] - qd_back) / eps
-        # relative pose and twist at the grasp instant
+        return self._result(motion, desired, ts, qs, qds, xs, qdd_end, law.peak_demand)
+
+    def _result(self, motion: TargetMotion, desired: _DesiredPose, ts: Array, qs: Array, qds: Array, xs: Array,
+                qdd_end: Array, peak_demand: float) -> TrackingResult:
+        """The trajectory with the relative pose and twist of the ee and the grasp frame at the grasp instant."""
         _, R_ee, p_ee, _ = (np.asarray(a) for a in self.kinematics(qs[-1], xs[-1]))
         R_g, p_g = (a[0] for a in motion.grasp_pose(ts[-1]))
         v_g, w_g = (a[0] for a in motion.grasp_twist(ts[-1]))
@@ -199,13 +122,142 @@ class TrackingController:
         # the grasp point's velocity at the ee origin (rigid target): v_g + ω × (p_ee − p_g)
         v_rel = twist_ee[:3] - (v_g + np.cross(w_g, p_ee.ravel() - p_g))
         return TrackingResult(
-            t=ts, q=qs, qd=qds, qdd_end=qdd_end, x_base=xs, free_axis_angle_rad=psi,
+            t=ts, q=qs, qd=qds, qdd_end=qdd_end, x_base=xs, free_axis_angle_rad=desired.psi,
             position_error_m=float(np.linalg.norm(p_ee.ravel() - p_g)),
-            orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ R_free).T @ R_ee))),
+            orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ desired.R_free).T @ R_ee))),
             relative_velocity_m_s=float(np.linalg.norm(v_rel)),
             relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
             peak_rate_demand=peak_demand,
         )
+
+
+class _DesiredPose:
+    """The desired ee pose of the module docstring at phase time ``t`` [s], and its twist by central differences.
+
+    The target's grasp frame at every time the integration asks for is computed up front in one vectorised
+    call (it does not depend on the chaser); poses are cached by time.
+    """
+
+    def __init__(self, sc: Scenario, motion: TargetMotion, t_start_s: float, R_ee0: Array, p_ee0: Array,
+                 stages: list[float]) -> None:
+        self.motion = motion
+        self.t_start_s = t_start_s
+        self.R_ee0, self.p_ee0 = R_ee0, p_ee0
+        self.stages = stages
+        self.T = sc.phases.tracking_s
+        self.d0 = sc.approach.pregrasp_backoff_m
+        axis = sc.target.grasp.free_axis
+        R_g0, _ = (a[0] for a in motion.grasp_pose(t_start_s))
+        self.psi = free_axis_angle(R_g0, R_ee0, axis)
+        self.R_free = np.eye(3) if axis is None else axis_angle_to_matrix(axis, self.psi)
+        self.grasp_at = _grasp_poses_at(motion, t_start_s,
+                                        [*stages, *(u for t in stages for u in _difference_times(t))])
+        self.cache: dict[float, tuple[Array, Array]] = {}
+
+    def pose(self, t: float) -> tuple[Array, Array]:
+        """``R_des`` (3, 3) and ``p_des`` (3,) [m], world."""
+        if t in self.cache:
+            return self.cache[t]
+        if t in self.grasp_at:
+            R_g, p_g = self.grasp_at[t]
+        else:
+            R_g, p_g = (a[0] for a in self.motion.grasp_pose(self.t_start_s + t))
+        R_G = R_g @ self.R_free
+        d = backoff_m(self.d0, t, self.T)
+        s = blend(t, self.T)
+        p = (1 - s) * self.p_ee0 + s * (p_g - d * R_G[:, 2])
+        R = self.R_ee0 @ pin.exp3(s * pin.log3(self.R_ee0.T @ R_G))
+        self.cache[t] = R, p
+        return R, p
+
+    def twist(self, t: float) -> Array:
+        """``[v; ω]`` (6,) [m/s, rad/s], world, by central differences of :meth:`pose` (one-sided at 0)."""
+        t_plus, t_minus = _difference_times(t)
+        R_p, p_p = self.pose(t_plus)
+        R_m, p_m = self.pose(t_minus)
+        h = FD_STEP_S + min(t, FD_STEP_S)
+        return np.concatenate([(p_p - p_m) / h, pin.log3(R_p @ R_m.T) / h])
+
+
+def _posture_reference(q0: Array, q_nodes: Array | None, T: float) -> CubicHermiteSpline | None:
+    """C¹ interpolation [rad] of the approach's configurations at the tracking nodes, at rest at t = 0."""
+    if q_nodes is None:
+        return None
+    node_t = np.array([0.0, *(f * T for f in TRACKING_NODES)])
+    node_q = np.vstack([q0, q_nodes])
+    slopes = np.gradient(node_q, node_t, axis=0)
+    slopes[0] = 0.0  # the approach ends at rest
+    return CubicHermiteSpline(node_t, node_q, slopes)
+
+
+class _RateLaw:
+    """The IK law: joint rates [rad/s] and base-pose rate at phase time t, with the smooth rate cap."""
+
+    def __init__(self, controller: TrackingController, desired: _DesiredPose,
+                 q_ref: CubicHermiteSpline | None) -> None:
+        sc = controller.scenario
+        self.kinematics = controller.kinematics
+        self.ff = controller.ff
+        self.desired = desired
+        self.q_ref = q_ref
+        self.q_ref_d = None if q_ref is None else q_ref.derivative()
+        self.K = sc.tracking.pose_gain_per_s
+        self.kn = sc.tracking.nullspace_gain
+        self.T = sc.phases.tracking_s
+        self.qd_max = sc.robot.qd_max
+        self.peak_demand = 0.0  # max over the calls of |q̇ asked by the law| / q̇_max, before the cap
+
+    def rates(self, t: float, q: Array, x: Array) -> tuple[Array, Array]:
+        """``q̇`` (7,) [rad/s] and ``ẋ_base`` (7,) at phase time ``t`` [s], joints ``q``, base pose ``x``."""
+        J, R_ee, p_ee, grad_w = (np.asarray(a) for a in self.kinematics(q, x))
+        R_d, p_d = self.desired.pose(t)
+        e = np.concatenate([p_d - p_ee.ravel(), pin.log3(R_d @ R_ee.T)])
+        ramp = gain_ramp(t, self.T)
+        J_pinv = np.linalg.pinv(J)
+        qd = J_pinv @ (self.desired.twist(t) + self.K * ramp * e)
+        null = self.kn * grad_w.ravel()
+        if self.q_ref is not None:
+            null = null + self.q_ref_d(t) + self.K * (self.q_ref(t) - q)
+        qd += (np.eye(len(q)) - J_pinv @ J) @ (ramp * null)
+        qd = self._capped(qd)
+        return qd, _base_rate(self.ff, q, qd, x)
+
+    def _capped(self, qd: Array) -> Array:
+        """``q̇`` scaled (direction kept) into the rate limits by the smooth cap ``q̇ / (1 + r^p)^(1/p)``.
+
+        r is the p-norm of q̇ / (cap · q̇_max): |q̇ᵢ| < cap always and q̈ stays continuous (a hard min() kinks
+        it, and the base pose's central differences then lose O(dt²)); below 0.85 of the cap it changes q̇ by
+        < 1e-4 relative. The pose feedback recovers the short lag where a blend peaks above what the approach
+        NLP modelled.
+        """
+        demand = np.abs(qd) / self.qd_max
+        self.peak_demand = max(self.peak_demand, float(demand.max()))
+        r = float(np.sum((demand / RATE_CAP_FRACTION) ** RATE_CAP_POWER) ** (1.0 / RATE_CAP_POWER))
+        return qd / (1.0 + r**RATE_CAP_POWER) ** (1.0 / RATE_CAP_POWER)
+
+
+def _integrate(law: _RateLaw, stages: list[float], steps: int, dt: float, q0: Array,
+               x_base0: Array) -> tuple[Array, Array, Array, Array]:
+    """RK4 of the law over the phase: ``q``, ``q̇`` (steps + 1, 7), base poses (steps + 1, 7) and ``ẋ_base`` at
+    the end (quaternion renormalised after every step)."""
+    qs = np.empty((steps + 1, len(q0)))
+    qds = np.empty_like(qs)
+    xs = np.empty((steps + 1, 7))
+    qs[0], xs[0] = q0, x_base0
+    k1q, k1x = law.rates(0.0, q0, x_base0)
+    qds[0] = k1q
+    for i in range(steps):
+        t_mid, t_next = stages[2 * i + 1], stages[2 * i + 2]
+        k2q, k2x = law.rates(t_mid, qs[i] + dt / 2 * k1q, xs[i] + dt / 2 * k1x)
+        k3q, k3x = law.rates(t_mid, qs[i] + dt / 2 * k2q, xs[i] + dt / 2 * k2x)
+        k4q, k4x = law.rates(t_next, qs[i] + dt * k3q, xs[i] + dt * k3x)
+        qs[i + 1] = qs[i] + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
+        xn = xs[i] + dt / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+        xn[3:] /= np.linalg.norm(xn[3:])
+        xs[i + 1] = xn
+        k1q, k1x = law.rates(t_next, qs[i + 1], xs[i + 1])
+        qds[i + 1] = k1q
+    return qs, qds, xs, k1x
 
 
 def _stage_times(steps: int, dt: float) -> list[float]:

@@ -11,8 +11,7 @@ stored samples nearest to k *inside one smooth segment* (one phase; the join sam
 phases it joins): centred inside, one-sided at a segment end. Weights come from Fornberg's algorithm
 (any spacing). The error is O(h⁴) where the motion is smooth, and O(h²)·(jump of the third
 derivative) at the few instants where the joint jerk jumps (B-spline knots, ends of the tracking
-profiles): measured on a solved scenario II plan, the base twist errs by ~1e-10 relative (median)
-and ≤ 8e-6 at knots, against ≤ 4e-5 for 3-point stencils. Rotations are differentiated through the
+profiles), still an order of magnitude below a 3-point stencil's error there. Rotations are differentiated through the
 rotation vectors ``φ_j = log(R_j R_kᵀ)`` (world frame) of the stencil relative to ``R_k``: with
 ``R(t) = exp([φ(t)]×) R_k``, ``φ'(t_k) = ω_world`` and ``φ''(t_k) = α_world`` exactly (the
 Baker–Campbell–Hausdorff correction ``½ φ × φ'`` and its derivative vanish at φ = 0).
