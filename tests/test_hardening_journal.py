@@ -8,6 +8,7 @@ import multiprocessing
 import os
 import threading
 from pathlib import Path
+from typing import NoReturn
 
 import pytest
 
@@ -22,7 +23,8 @@ RACE_TRIALS = 25
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="flock and fork are POSIX")
 
 
-def _racer(path: str, barrier, results, name: str) -> None:  # noqa: ANN001
+def _racer(path: str, barrier: multiprocessing.synchronize.Barrier, results: multiprocessing.queues.Queue,
+           name: str) -> None:
     barrier.wait()
     try:
         journal = Journal(Path(path), HEADER)
@@ -82,7 +84,7 @@ def test_option_errors_leave_no_journal_behind(tmp_path, args, words):
 def test_a_build_that_fails_before_its_first_record_leaves_no_journal(tmp_path, monkeypatch):
     import lut.build.sweep
 
-    def no_workers(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+    def no_workers(*args: object, **kwargs: object) -> NoReturn:
         raise OSError("no workers today")
 
     monkeypatch.setattr(lut.build.sweep, "_solve_layers", no_workers)

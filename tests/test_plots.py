@@ -197,7 +197,7 @@ def test_coverage_maps_skip_missing_costs_and_page_many_panels(tmp_path, monkeyp
 # ---- CLI -----------------------------------------------------------------------------------------
 
 # the view commands on the real main group, as lut/cli/main.py wires them
-CLI = "from lut.cli.main import main; from lut.cli.view import register; register(main); main()"
+CLI = "from lut.cli.main import main; main()"
 
 
 def _run(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
@@ -223,10 +223,11 @@ def _cli_in_process(*args: str):
     import click
     from click.testing import CliRunner
 
-    from lut.cli.view import register
+    from lut.cli.view import COMMANDS
 
     group = click.Group()
-    register(group)
+    for command in COMMANDS:
+        group.add_command(command)
     return CliRunner().invoke(group, list(args))
 
 
@@ -266,7 +267,7 @@ def test_cli_unwritable_output_is_one_line(tmp_path):
 
 
 def test_lutgen_main_has_the_view_commands():
-    """lut/cli/main.py registers plot and preview (``register(main)``)."""
+    """lut/cli/main.py assembles plot and preview into the group with the other commands."""
     from lut.cli.main import main
 
     assert {"plot", "preview"} <= set(main.commands)

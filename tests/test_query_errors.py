@@ -7,6 +7,7 @@ table's grid, schema and model hash, which are the real ones of ``configs/grids/
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import h5py
@@ -22,7 +23,7 @@ def table(tmp_path_factory) -> Path:
     return path
 
 
-def _query(table: Path, *args: str):  # noqa: ANN202
+def _query(table: Path, *args: str) -> subprocess.CompletedProcess:
     return lutgen("query", table, *args)
 
 

@@ -20,16 +20,19 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.colors import BoundaryNorm, ListedColormap
+from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from numpy.typing import NDArray
 
 from lut.output.plot_style import new_figure, save_figure
-from lut.table.store import STATUS_CODES, Table
+from lut.table.schema import STATUS_CODES
+from lut.table.store import Table
 
 Array = NDArray[np.float64]
 MAX_PANELS = 48  # per figure: beyond it the panels get too small to read
@@ -89,7 +92,7 @@ class _Style:
         return f"{value:.3g}"
 
 
-def _status_legend(fig_or_ax) -> None:  # noqa: ANN001 - a Figure or an Axes
+def _status_legend(fig_or_ax: Figure | Axes) -> None:
     handles = [Patch(color=color, label=name) for name, color in STATUS_COLORS.items()]
     fig_or_ax.legend(handles=handles, loc="outside lower center" if hasattr(fig_or_ax, "subfigs") else "best",
                      ncols=4, fontsize=8)
@@ -130,6 +133,7 @@ def _line(ax: Axes, x: Array, values: Array, style: _Style, ylabel: str) -> None
 
 
 def _coverage_figures(table: Table, field: str, stem: str, label: str, out_dir: Path) -> list[Path]:
+    """The figure(s) of one quantity: a line for at most one varying axis, heatmap pages otherwise."""
     values = np.asarray(table.field(field), dtype=float)
     shape = tuple(len(v) for v in table.axis_values)
     cube = values.reshape(shape)
@@ -145,58 +149,91 @@ def _coverage_figures(table: Table, field: str, stem: str, label: str, out_dir: 
         _line(ax, table.axis_values[i], cube.reshape(-1), style, label)
         ax.set_xlabel(axis_label(table.axis_names[i]))
         return [save_figure(fig, out_dir / f"coverage_{stem}.png", title)]
-
-    # the two axes with the most values make the heatmaps (ties: the later, faster-varying axis)
-    ix, iy = sorted(varying, key=lambda i: (shape[i], i))[-2:][::-1]
-    panel_axes = [i for i in varying if i not in (ix, iy)]
-    # panel columns: the last panel axes, while at most MAX_COLUMNS panels wide; rows: the others
-    col_axes: list[int] = []
-    for i in reversed(panel_axes):
-        if math.prod(shape[j] for j in [i, *col_axes]) > MAX_COLUMNS:
-            break
-        col_axes.insert(0, i)
-    row_axes = [i for i in panel_axes if i not in col_axes]
-    ncols = math.prod(shape[i] for i in col_axes)
-    rows = list(itertools.product(*[range(shape[i]) for i in row_axes]))
-    cols = list(itertools.product(*[range(shape[i]) for i in col_axes]))
-    rows_per_page = max(1, MAX_PANELS // ncols)
-    pages = [rows[k:k + rows_per_page] for k in range(0, len(rows), rows_per_page)]
-    single = not panel_axes
+    layout = _PanelLayout.of(shape, varying)
+    pages = layout.pages()
     written = []
     for page_no, page in enumerate(pages, start=1):
-        nrows = len(page)
-        panel_in = 5.0 if single else 2.7
-        fig = new_figure(max(6.5, panel_in * 1.15 * ncols + 1.2), panel_in * nrows + 1.3)
-        axes = fig.subplots(nrows, ncols, squeeze=False)
-        annotate = nrows * ncols * shape[ix] * shape[iy] <= ANNOTATE_MAX_CELLS
-        mesh = None
-        for r, row in enumerate(page):
-            for c, col in enumerate(cols):
-                ax = axes[r, c]
-                index: list[object] = [slice(None) if i in varying else 0 for i in range(len(shape))]
-                chosen = list(zip(row_axes, row, strict=True)) + list(zip(col_axes, col, strict=True))
-                for i, k in chosen:
-                    index[i] = k
-                grid = cube[tuple(index)]  # remaining dims in axis order: (iy, ix) if iy < ix
-                if iy > ix:
-                    grid = grid.T
-                mesh = _heatmap(ax, table.axis_values[ix], table.axis_values[iy], grid, style, annotate)
-                if chosen:
-                    ax.set_title(", ".join(f"{_short(table.axis_names[i])} = {table.axis_values[i][k]:g}"
-                                           for i, k in chosen), fontsize=7)
-                if r == nrows - 1:
-                    ax.set_xlabel(axis_label(table.axis_names[ix]), fontsize=8)
-                if c == 0:
-                    ax.set_ylabel(axis_label(table.axis_names[iy]), fontsize=8)
-        if style.categorical:
-            _status_legend(fig)
-        elif mesh is not None:
-            fig.colorbar(mesh, ax=axes.ravel().tolist(), label=f"{label}  (hatched: no value)",
-                         shrink=0.9 if nrows > 1 else 1.0)
+        fig = _panel_page(table, cube, layout, page, style, label)
         name = f"coverage_{stem}.png" if page_no == 1 else f"coverage_{stem}_{page_no}.png"
         page_title = title if len(pages) == 1 else f"{title} [page {page_no}/{len(pages)}]"
         written.append(save_figure(fig, out_dir / name, page_title))
     return written
+
+
+@dataclass(frozen=True)
+class _PanelLayout:
+    """Which grid axes make each heatmap (``ix``, ``iy``), its panel rows and its panel columns."""
+
+    shape: tuple[int, ...]
+    varying: list[int]
+    ix: int
+    iy: int
+    row_axes: list[int]
+    col_axes: list[int]
+
+    @classmethod
+    def of(cls, shape: tuple[int, ...], varying: list[int]) -> _PanelLayout:
+        # the two axes with the most values make the heatmaps (ties: the later, faster-varying axis)
+        ix, iy = sorted(varying, key=lambda i: (shape[i], i))[-2:][::-1]
+        panel_axes = [i for i in varying if i not in (ix, iy)]
+        # panel columns: the last panel axes, while at most MAX_COLUMNS panels wide; rows: the others
+        col_axes: list[int] = []
+        for i in reversed(panel_axes):
+            if math.prod(shape[j] for j in [i, *col_axes]) > MAX_COLUMNS:
+                break
+            col_axes.insert(0, i)
+        row_axes = [i for i in panel_axes if i not in col_axes]
+        return cls(shape, varying, ix, iy, row_axes, col_axes)
+
+    @property
+    def single(self) -> bool:
+        return not self.row_axes and not self.col_axes
+
+    @property
+    def cols(self) -> list[tuple[int, ...]]:
+        return list(itertools.product(*[range(self.shape[i]) for i in self.col_axes]))
+
+    def pages(self) -> list[list[tuple[int, ...]]]:
+        """The panel rows (index tuples over :attr:`row_axes`), at most :data:`MAX_PANELS` panels a page."""
+        rows = list(itertools.product(*[range(self.shape[i]) for i in self.row_axes]))
+        rows_per_page = max(1, MAX_PANELS // len(self.cols))
+        return [rows[k:k + rows_per_page] for k in range(0, len(rows), rows_per_page)]
+
+
+def _panel_page(table: Table, cube: Array, layout: _PanelLayout, page: list[tuple[int, ...]], style: _Style,
+                label: str) -> Figure:
+    """One page of heatmap panels (rows of ``page`` × every column) with its legend or colour bar."""
+    shape, ix, iy, cols = layout.shape, layout.ix, layout.iy, layout.cols
+    nrows, ncols = len(page), len(cols)
+    panel_in = 5.0 if layout.single else 2.7
+    fig = new_figure(max(6.5, panel_in * 1.15 * ncols + 1.2), panel_in * nrows + 1.3)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    annotate = nrows * ncols * shape[ix] * shape[iy] <= ANNOTATE_MAX_CELLS
+    mesh = None
+    for r, row in enumerate(page):
+        for c, col in enumerate(cols):
+            ax = axes[r, c]
+            index: list[object] = [slice(None) if i in layout.varying else 0 for i in range(len(shape))]
+            chosen = list(zip(layout.row_axes, row, strict=True)) + list(zip(layout.col_axes, col, strict=True))
+            for i, k in chosen:
+                index[i] = k
+            grid = cube[tuple(index)]  # remaining dims in axis order: (iy, ix) if iy < ix
+            if iy > ix:
+                grid = grid.T
+            mesh = _heatmap(ax, table.axis_values[ix], table.axis_values[iy], grid, style, annotate)
+            if chosen:
+                ax.set_title(", ".join(f"{_short(table.axis_names[i])} = {table.axis_values[i][k]:g}"
+                                       for i, k in chosen), fontsize=7)
+            if r == nrows - 1:
+                ax.set_xlabel(axis_label(table.axis_names[ix]), fontsize=8)
+            if c == 0:
+                ax.set_ylabel(axis_label(table.axis_names[iy]), fontsize=8)
+    if style.categorical:
+        _status_legend(fig)
+    elif mesh is not None:
+        fig.colorbar(mesh, ax=axes.ravel().tolist(), label=f"{label}  (hatched: no value)",
+                     shrink=0.9 if nrows > 1 else 1.0)
+    return fig
 
 
 def _short(name: str) -> str:

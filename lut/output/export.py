@@ -1,4 +1,4 @@
-"""Plan export: the ``lutgen.plan/1`` JSON object and its flat CSV twin (DESIGN §7).
+"""Plan export: the ``lutgen.plan/1`` JSON object and its flat CSV twin (docs/table.md, Plan file).
 
 All quantities in the orbital frame O and SI units; samples at the verification step, one row per time.
 """

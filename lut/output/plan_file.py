@@ -1,4 +1,4 @@
-"""Reading a ``lutgen.plan/1`` document (DESIGN §7) back, for the plots and the 3D preview.
+"""Reading a ``lutgen.plan/1`` document (docs/table.md, Plan file) back, for the plots and the 3D preview.
 
 The writer is :mod:`lut.output.export`. A reader checks only what it uses: the schema tag, the phases and
 the sample arrays (equal length, the documented widths), so that a broken file fails here with one

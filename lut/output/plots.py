@@ -1,4 +1,4 @@
-"""Figures of one plan, read from its ``lutgen.plan/1`` JSON document (DESIGN §7), as PNG files.
+"""Figures of one plan, read from its ``lutgen.plan/1`` JSON document (docs/table.md, Plan file), as PNG files.
 
 One figure per question a person asks before a plan runs; every time axis is in s since the
 observation and shows the phase boundaries (``doc["phases"]``) as dotted lines:

@@ -1,14 +1,12 @@
 """A read of an untrusted file run first in a forked child with a time limit: a corrupt file that hangs or
 crashes libhdf5 costs seconds and one error line, never the caller.
 
-Measured on ``tests/data/ci_golden.h5`` with bytes 4000–12000 zeroed: libhdf5 spins at 100 % CPU inside
-``H5Aread`` of a root attribute, holding the GIL, deaf to Ctrl-C. Nothing in the file's structure can be
-checked before that attribute without re-implementing an HDF5 parser, so the reader runs in a child:
-``os.fork`` of the caller (no new interpreter, no imports) does the whole read and exits; only when it
-succeeded does the caller read the file itself. Measured on the golden table: the read alone ~10 ms, with
-the probe ~45 ms in a process holding numpy and h5py, ~120 ms in one holding CasADi and pinocchio too (a
-fork copies the page tables); a fresh interpreter would cost ~300 ms of imports. The child's answer is its exit
-code and, on failure, one line through a pipe; no data crosses the process boundary (no pickles).
+A damaged table can make libhdf5 spin inside the read of a root attribute, holding the GIL, deaf to
+Ctrl-C; nothing in the file's structure can be checked before that attribute without re-implementing an
+HDF5 parser. So ``os.fork`` of the caller (no new interpreter, no imports: far cheaper than a fresh
+process) does the whole read and exits; only when it succeeded does the caller read the file itself.
+The child's answer is its exit code and, on failure, one line through a pipe; no data crosses the
+process boundary (no pickles).
 """
 
 from __future__ import annotations

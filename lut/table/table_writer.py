@@ -143,13 +143,33 @@ def write_table(path: Path, *, grid_axes: list[tuple[str, np.ndarray]], grid_kin
                 scenario_path: str | None = None) -> None:
     """Write the table atomically: ``<path>.tmp`` beside ``path`` (``t.h5`` → ``t.h5.tmp``), fsync, rename.
 
-    ``records`` maps point index → flat record (module docstring); points without a record are
+    ``records`` maps point index → flat record (:mod:`lut.table.schema`); points without a record are
     pending. Bad input (unknown status, a value that cannot be stored, inconsistent shapes) raises
     :class:`TableError` and leaves ``path`` as it was; no temp file is left behind either way.
     """
     path = Path(path)
     if n_points < 0:
         raise TableError(f"{path}: n_points must be >= 0, got {n_points}")
+    axes = _checked_axes(grid_axes)
+    status, arrays = _point_arrays(records, n_points)
+    attrs = {"schema_version": np.int64(SCHEMA_VERSION), "lutgen_version": lutgen_version(),
+             "config_text": config_text, "scenario_text": scenario_text, "model_hash": model_hash,
+             "created_utc": datetime.now(UTC).isoformat(timespec="seconds"), "grid_kind": grid_kind}
+    if scenario_path is not None:
+        attrs["scenario_path"] = str(scenario_path)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        _write_h5(tmp, attrs, axes, status, arrays)
+        fsync_file(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    fsync_dir(path.parent)
+
+
+def _checked_axes(grid_axes: list[tuple[str, np.ndarray]]) -> list[tuple[str, np.ndarray]]:
+    """The grid axes as (name, float64 values ``(count,)``), names checked: valid, no '/', no repeats."""
     axes: list[tuple[str, np.ndarray]] = []
     for name, values in grid_axes:
         _check_name(name, "grid axis")
@@ -158,37 +178,27 @@ def write_table(path: Path, *, grid_axes: list[tuple[str, np.ndarray]], grid_kin
         axes.append((name, np.asarray(values, dtype=np.float64).reshape(-1)))
     if len({name for name, _ in axes}) != len(axes):
         raise TableError(f"grid axis names repeat: {[name for name, _ in axes]}")
-    status, arrays = _point_arrays(records, n_points)
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["schema_version"] = np.int64(SCHEMA_VERSION)
-            f.attrs["lutgen_version"] = lutgen_version()
-            f.attrs["config_text"] = config_text
-            f.attrs["scenario_text"] = scenario_text
-            f.attrs["model_hash"] = model_hash
-            f.attrs["created_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
-            f.attrs["grid_kind"] = grid_kind
-            if scenario_path is not None:
-                f.attrs["scenario_path"] = str(scenario_path)
-            grid = f.create_group("grid")
-            grid.attrs["axis_names"] = [name for name, _ in axes]
-            for name, values in axes:
-                grid.create_dataset(name, data=values, track_times=False)
-            pts = f.create_group("points")
-            pts.attrs["status_codes"] = json.dumps(STATUS_CODES)
-            pts.attrs["missing_values"] = "float: NaN, int: -1, str: empty string"
-            pts.create_dataset("status", data=status, track_times=False)
-            for key in sorted(arrays):
-                data = arrays[key]
-                if data.dtype == object:
-                    pts.create_dataset(key, data=data, dtype=_STR_DTYPE, track_times=False)
-                else:
-                    pts.create_dataset(key, data=data, track_times=False)
-            f.flush()
-        fsync_file(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    fsync_dir(path.parent)
+    return axes
+
+
+def _write_h5(tmp: Path, attrs: dict[str, Any], axes: list[tuple[str, np.ndarray]], status: np.ndarray,
+              arrays: dict[str, np.ndarray]) -> None:
+    """The whole HDF5 file at ``tmp``: root attributes, ``grid/`` and ``points/`` (:mod:`lut.table.schema`)."""
+    with h5py.File(tmp, "w") as f:
+        for name, value in attrs.items():
+            f.attrs[name] = value
+        grid = f.create_group("grid")
+        grid.attrs["axis_names"] = [name for name, _ in axes]
+        for name, values in axes:
+            grid.create_dataset(name, data=values, track_times=False)
+        pts = f.create_group("points")
+        pts.attrs["status_codes"] = json.dumps(STATUS_CODES)
+        pts.attrs["missing_values"] = "float: NaN, int: -1, str: empty string"
+        pts.create_dataset("status", data=status, track_times=False)
+        for key in sorted(arrays):
+            data = arrays[key]
+            if data.dtype == object:
+                pts.create_dataset(key, data=data, dtype=_STR_DTYPE, track_times=False)
+            else:
+                pts.create_dataset(key, data=data, track_times=False)
+        f.flush()

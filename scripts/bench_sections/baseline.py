@@ -9,7 +9,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import OptimizeResult, minimize
 
 from bench_sections.common import Settings, load_scenario_named, timed
 
@@ -88,7 +88,7 @@ def solve_slsqp(nlp: ApproachNLP, cap_s: float, max_iter: int) -> dict[str, Any]
                                                                                                      strict=True)]
     t0 = time.perf_counter()
 
-    def wall_cap(intermediate_result) -> None:  # noqa: ANN001 - scipy's OptimizeResult
+    def wall_cap(intermediate_result: OptimizeResult) -> None:
         if time.perf_counter() - t0 > cap_s:
             raise StopIteration  # scipy ends the solve, returns this iterate, status 99
 

@@ -4,9 +4,12 @@ state, one core): time per phase, IPOPT iterations, dense-verification verdict."
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench_sections.common import Settings, load_scenario_named, skipped, stats, timed
+
+if TYPE_CHECKING:
+    from planner.config.scenario import Scenario
 
 SCENARIO_NAMES = ("scenario_I", "scenario_II")
 PHASE_KEYS = ("approach_s", "tracking_s", "stabilization_s", "total_s")
@@ -17,7 +20,7 @@ COST_NAMES = ("manipulability", "min_distance", "approach_energy", "attitude_dis
 PAPER_APPROACH_COSTS = {"manipulability": 1.0, "min_distance": 1.0}
 
 
-def _cost_weights(scenario, variant: str) -> dict[str, float]:  # noqa: ANN001 - Scenario
+def _cost_weights(scenario: Scenario, variant: str) -> dict[str, float]:
     """All-zero weights (feasibility only), or the scenario's own weights, or the paper's if it has none."""
     own = {name: float(getattr(scenario.costs, name)) for name in COST_NAMES}
     if variant == "feasibility":
@@ -25,7 +28,7 @@ def _cost_weights(scenario, variant: str) -> dict[str, float]:  # noqa: ANN001 -
     return own if any(own.values()) else {**dict.fromkeys(COST_NAMES, 0.0), **PAPER_APPROACH_COSTS}
 
 
-def _plan_runs(scenario, runs: int) -> dict[str, Any]:  # noqa: ANN001 - Scenario
+def _plan_runs(scenario: Scenario, runs: int) -> dict[str, Any]:
     """``runs`` plans of the default state with one Planner (problems built once, as a table build does)."""
     from planner.plan import Planner
     from planner.verify.verifier import verify

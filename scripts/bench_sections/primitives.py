@@ -3,7 +3,7 @@ pinocchio, and the time of one dense verification of a whole plan."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -19,8 +19,11 @@ from bench_sections.common import (
     timed,
 )
 
+if TYPE_CHECKING:
+    from planner.model.robot import RobotModel
 
-def _random_configuration(robot, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+
+def _random_configuration(robot: RobotModel, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint angles inside the limits (rad), base position (m) and attitude quaternion [w, x, y, z]."""
     quat = rng.normal(size=4)
     return rng.uniform(robot.q_min, robot.q_max), rng.uniform(-1.0, 1.0, size=3), quat / np.linalg.norm(quat)

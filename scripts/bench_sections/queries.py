@@ -8,11 +8,16 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from bench_sections.common import ROOT, Settings, relative, skipped, stats_p95, table_query
+
+if TYPE_CHECKING:
+    from lut.query.table_query import TableQuery
+    from lut.table.grid import Grid
+    from planner.model.target import TargetState
 
 # lut.query.table_query starts no refine when less than MIN_REFINE_S is left after FINISH_RESERVE_S: a 1 s budget
 # measures the table alone (lookup, interpolation, re-simulation, verification), as tests/test_ci_table.py does
@@ -21,14 +26,14 @@ REFINE_KEYS = ("refine_s", "query_with_refine_total_s", "fraction_feasible_after
                "queries_over_budget", "budget_s")
 
 
-def in_grid_states(grid, n: int, seed: int) -> list:  # noqa: ANN001 - lut.table.grid.Grid -> list[TargetState]
+def in_grid_states(grid: Grid, n: int, seed: int) -> list[TargetState]:
     """``n`` states drawn uniformly (seeded) from the box of the grid's axis values."""
     rng = np.random.default_rng(seed)
     coords = np.column_stack([rng.uniform(v.min(), v.max(), size=n) for v in grid.axis_values])
     return [grid.state_at(c) for c in coords]
 
 
-def _interpolation_only(tq, states: list) -> tuple[dict[str, Any], list]:  # noqa: ANN001
+def _interpolation_only(tq: TableQuery, states: list[TargetState]) -> tuple[dict[str, Any], list[TargetState]]:
     """Lookup + interpolation, simulate, verify per state; feasibility from the table alone."""
     lat: dict[str, list[float]] = {"lookup_interpolate_s": [], "simulate_s": [], "verify_s": [], "total_s": []}
     sources: dict[str, int] = {}
@@ -37,7 +42,7 @@ def _interpolation_only(tq, states: list) -> tuple[dict[str, Any], list]:  # noq
         res = tq.query(state, budget_s=NO_REFINE_BUDGET_S)
         for key, samples in lat.items():
             samples.append(res.latency_s[key])
-        sources[res.source] = sources.get(res.source, 0) + 1
+        sources[res.source.value] = sources.get(res.source.value, 0) + 1
         if not res.report.feasible:
             infeasible.append((state, res.report.violations))
     out = {"lookup_interpolate_ms": stats_p95([1e3 * t for t in lat["lookup_interpolate_s"]]),
@@ -48,7 +53,8 @@ def _interpolation_only(tq, states: list) -> tuple[dict[str, Any], list]:  # noq
     return out, [s for s, _ in infeasible]
 
 
-def _refine(tq, states: list, n_states: int, n_interp_ok: int, budget_s: float) -> dict[str, Any]:  # noqa: ANN001
+def _refine(tq: TableQuery, states: list[TargetState], n_states: int, n_interp_ok: int,
+            budget_s: float) -> dict[str, Any]:
     """Re-query the infeasible states with a budget that allows the warm-started refine solve."""
     if not states:
         return skipped("every interpolated plan was feasible: nothing to refine", REFINE_KEYS) | {
@@ -65,7 +71,7 @@ def _refine(tq, states: list, n_states: int, n_interp_ok: int, budget_s: float) 
             "queries_over_budget": over, "budget_s": budget_s}
 
 
-def query_process_memory(table: Path, state) -> dict[str, Any]:  # noqa: ANN001 - TargetState
+def query_process_memory(table: Path, state: TargetState) -> dict[str, Any]:
     """Peak RSS (MiB) and wall time (s) of one ``lutgen query`` process, table alone (no refine).
 
     A small Python wrapper runs the CLI and reads ``getrusage(RUSAGE_CHILDREN)``: its only child is the

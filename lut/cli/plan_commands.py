@@ -1,0 +1,90 @@
+"""``lutgen validate`` and ``lutgen plan``: one scenario, one target state, no table."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from lut.cli.exit_codes import ExitCode
+from lut.cli.options import COST_NAMES, check_plan_outputs, cost_weights, target_state_from_options
+from lut.cli.plan_output import export_and_verdict, plan_table
+from lut.cli.user_errors import user_errors
+
+
+@click.command()
+@click.argument("scenario_path", type=click.Path(dir_okay=False))
+@user_errors
+def validate(scenario_path: str) -> None:
+    """Load SCENARIO_PATH with its robot and target, check every field, print a summary."""
+    from planner.collision.layout import scene_layout
+    from planner.config.scenario import load_scenario
+
+    sc = load_scenario(scenario_path)
+    robot = sc.robot
+    layout = scene_layout(robot, sc.target)
+    click.echo(f"scenario   {sc.name}  ({sc.source})")
+    click.echo(f"robot      {robot.urdf_path}: {len(robot.body_names)} bodies, {robot.n_joints} joints, "
+               f"{robot.total_mass_kg:.1f} kg, ee frame {robot.ee_frame!r}")
+    click.echo(f"target     {sc.target.name}: {sc.target.mass_kg:.1f} kg, {len(sc.target.shapes)} shapes")
+    handle = "" if layout.gripper_handle is None else f"; {'-'.join(layout.gripper_handle)} may touch only at the grasp"
+    click.echo(f"collision  {len(layout.pairs)} body pairs{handle}")
+    click.echo("ok")
+
+
+@click.command()
+@click.argument("scenario_path", type=click.Path(dir_okay=False))
+@click.option("--spin-rate-deg-s", type=float, default=None,
+              help="Spin rate (deg/s) about the scenario's (or --omega-deg-s's) spin axis.")
+@click.option("--attitude", default=None, metavar="W,X,Y,Z", help="Observed target attitude (unit quaternion).")
+@click.option("--omega-deg-s", default=None, metavar="X,Y,Z", help="Observed body rates (deg/s).")
+@click.option("--cost", "costs", multiple=True, metavar="NAME[=WEIGHT]",
+              help=f"Cost term (repeatable), overriding the scenario's: none, {', '.join(COST_NAMES)}, "
+                   "overscale=FACTOR.")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None,
+              help="Write the plan JSON (lutgen.plan/1) here.")
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write the samples as CSV.")
+@click.option("--verify-step-s", type=float, default=0.02, show_default=True,
+              help="Dense verification step (s).")
+@user_errors
+def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None, omega_deg_s: str | None,
+         costs: tuple[str, ...], out_path: str | None, csv_path: str | None, verify_step_s: float) -> None:
+    """Plan one grasp for SCENARIO_PATH directly (no look-up table), verify it densely, export it.
+
+    Exit code 0: feasible; 2: infeasible (the violated constraints are printed); 1: bad input.
+    """
+    from dataclasses import replace
+
+    from planner.config.scenario import load_scenario
+    from planner.errors import LutgenError
+    from planner.plan import OutOfReach, Planner
+    from planner.verify.verifier import summary_lines, verify
+
+    if not 0 < verify_step_s <= 0.02:
+        raise LutgenError(f"--verify-step-s: must be in (0, 0.02], got {verify_step_s}")
+    sc = load_scenario(scenario_path)
+    check_plan_outputs([scenario_path, sc.robot.urdf_path, sc.target.source], out_path, csv_path)
+    sc = replace(sc, costs=cost_weights(sc.costs, costs))
+    state = target_state_from_options(sc, attitude, omega_deg_s, spin_rate_deg_s)
+    click.echo(f"planning {sc.name}: building the problems…", err=True)
+    planner = Planner(sc)
+    click.echo(f"  built in {planner.build_time_s:.1f} s; solving…", err=True)
+    try:
+        result = planner.plan(state)
+    except OutOfReach as exc:  # proved infeasible before solving: no trajectory to verify or export
+        click.echo(f"INFEASIBLE ({exc.elapsed_s:.1f} s): {exc}", err=True)
+        if out_path or csv_path:
+            click.echo("no plan written: there is no trajectory to export", err=True)
+        sys.exit(ExitCode.INFEASIBLE)
+    report = verify(result, step_s=verify_step_s)
+    for line in plan_table(result, report):
+        click.echo(line)
+    for note in result.notes:  # e.g. the approach re-solved, or the plan made from another grasp
+        click.echo(f"note: {note}")
+    for line in summary_lines(report):
+        click.echo(line)
+    export_and_verdict(result, report, out_path, csv_path)
+
+
+COMMANDS = (validate, plan)

@@ -1,0 +1,51 @@
+"""How ``lutgen plan`` and ``lutgen query`` end: the plan summary printed, the plan files written, the verdict."""
+
+from __future__ import annotations
+
+import sys
+from typing import TYPE_CHECKING
+
+import click
+
+from lut.cli.exit_codes import ExitCode
+
+if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load the planner
+    from planner.plan import GraspPlan
+    from planner.verify.verifier import VerifyReport
+
+
+def plan_table(result: GraspPlan, report: VerifyReport) -> list[str]:
+    """The summary lines of a plan and its verification (times [s], offsets [m], torques [N·m])."""
+    import numpy as np
+
+    a, s = result.approach, result.stabilization
+    lines = ["phase          start [s]   end [s]   solver                 iters   time [s]"]
+    # phase times from the plan's timings where it has them: they include every grasp a plan tried
+    t = result.timings_s
+    solver = {"approach": (a.status, a.iterations, t.get("approach_s") or a.solve_time_s),
+              "tracking": ("IK (Eq. 7)", "-", t.get("tracking_s", 0.0)),
+              "stabilization": (s.status, s.iterations, t.get("stabilization_s") or s.solve_time_s + s.build_time_s)}
+    for name, (t0, t1) in result.phases.items():
+        st, it, tm = solver[name]
+        lines.append(f"{name:<14} {t0:9.2f} {t1:9.2f}   {st:<22} {it!s:>5} {tm:9.2f}")
+    lines.append(f"start delay {a.start_delay_s:.2f} s, base offset θ_b(0) = ({a.base_offset_m[0]:+.4f}, "
+                 f"{a.base_offset_m[1]:+.4f}) m (x, z), total planning time {result.timings_s['total_s']:.1f} s")
+    lines.append(f"min distance {np.min(report.min_distance_m):.4f} m over {report.pair_count} pairs; "
+                 f"peak grasp torque {np.abs(report.grasp_wrench[:, 3:]).max():.3f} N·m")
+    return lines
+
+
+def export_and_verdict(result: GraspPlan, report: VerifyReport, out_path: str | None, csv_path: str | None) -> None:
+    """Write the plan JSON and CSV where asked, then print FEASIBLE, or the violations and exit 2."""
+    from lut.output.export import plan_document, write_csv, write_json
+
+    if out_path:
+        write_json(out_path, plan_document(result, report))
+        click.echo(f"wrote {out_path}")
+    if csv_path:
+        write_csv(csv_path, result, report)
+        click.echo(f"wrote {csv_path}")
+    if not report.feasible:
+        click.echo("INFEASIBLE: " + "; ".join(report.violations), err=True)
+        sys.exit(ExitCode.INFEASIBLE)
+    click.echo("FEASIBLE")

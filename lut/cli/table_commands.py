@@ -1,0 +1,171 @@
+"""``lutgen build``, ``lutgen inspect`` and ``lutgen query``: the look-up table's commands."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from lut.cli.options import MAX_BUDGET_S, check_plan_outputs, parse_floats
+from lut.cli.plan_output import export_and_verdict, plan_table
+from lut.cli.user_errors import user_errors
+from planner.errors import LutgenError
+
+if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load h5py
+    from lut.table.store import Table
+
+
+@click.command()
+@click.argument("grid_path", type=click.Path(dir_okay=False))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), required=True, help="The HDF5 table to write.")
+@click.option("-j", "--jobs", type=int, default=1, show_default=True, help="Points solved in parallel (loky).")
+@click.option("--backend", type=click.Choice(["loky", "dask"]), default="loky", show_default=True,
+              help="joblib backend; dask needs --scheduler and the 'dask' extra.")
+@click.option("--scheduler", default=None, metavar="tcp://HOST:PORT", help="Dask distributed scheduler address.")
+@click.option("--point-timeout", "point_timeout_s", type=float, default=900.0, show_default=True,
+              help="Wall-time limit per grid point (s); a point past it is recorded as failed.")
+@click.option("--resume", is_flag=True,
+              help="Continue an interrupted build from its journal; a complete table is left as it is.")
+@click.option("--force", is_flag=True,
+              help="Build again although OUT (or an interrupted build's journal) exists; OUT is replaced only "
+                   "when the new table is complete.")
+@click.option("--no-progress", is_flag=True, help="No progress bar (logs, CI).")
+@user_errors
+def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str | None, point_timeout_s: float,
+          resume: bool, force: bool, no_progress: bool) -> None:
+    """Solve every point of GRID_PATH and store the verified plans in an HDF5 look-up table.
+
+    Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
+    An existing OUT is never overwritten without --force.
+    """
+    from lut.build.options import BuildOptions, BuildOutcome
+    from lut.build.sweep import run_build
+
+    options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
+                           resume=resume, force=force, progress=not no_progress)
+    summary = run_build(grid_path, out_path, options)
+    c = summary.counts
+    if summary.outcome is BuildOutcome.ALREADY_COMPLETE:
+        click.echo(f"{summary.table} is complete ({summary.n_points} points — {c['feasible']} feasible, "
+                   f"{c['infeasible']} infeasible, {c['failed']} failed): nothing to resume, nothing changed")
+        return
+    click.echo(f"built {summary.table}: {summary.n_points} points — {c['feasible']} feasible, "
+               f"{c['infeasible']} infeasible, {c['failed']} failed, {c['pending']} pending; "
+               f"{summary.solved_now} solved in {summary.wall_time_s:.0f} s")
+    for line in summary.failures[:10]:
+        click.echo(f"  failed {line}")
+
+
+@click.command()
+@click.argument("table_path", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Also write maps of feasibility, costs and solve time over the grid axes (PNG) to DIR.")
+@user_errors
+def inspect(table_path: str, as_json: bool, plot_dir: str | None) -> None:
+    """Summarise a look-up table: grid, point counts, cost and solve-time statistics, model hash.
+
+    With --plot DIR: heatmaps over two grid axes (small multiples over a third and beyond; a line plot
+    for one axis) of feasibility, each cost and the solve time.
+    """
+    import json
+
+    from lut.table.store import Table
+
+    table = Table.open(table_path)
+    info = _table_info(table, table_path)
+    if plot_dir is not None:
+        from lut.output.coverage_plots import write_coverage_maps
+
+        try:
+            info["plots"] = [str(p) for p in write_coverage_maps(table, plot_dir)]
+        except OSError as exc:
+            raise LutgenError(f"{plot_dir}: cannot write ({exc.strerror or exc})") from None
+    if as_json:
+        click.echo(json.dumps(info, indent=1))
+        return
+    for path in info.get("plots", []):
+        click.echo(f"wrote {path}")
+    click.echo(f"table      {table_path} (schema {info['schema_version']}, model {info['model_hash'][:12]}…)")
+    for name, values in info["axes"].items():
+        click.echo(f"axis       {name}: {len(values)} values in [{min(values):g}, {max(values):g}]")
+    click.echo("points     " + ", ".join(f"{k} {v}" for k, v in info["counts"].items()) + f" (of {table.n_points})")
+    for name, s in [("solve time [s]", info["solve_time_s"])] + [(k, v) for k, v in info["costs"].items()]:
+        if s["min"] is not None:
+            click.echo(f"{name:<22} min {s['min']:.4g}  median {s['median']:.4g}  max {s['max']:.4g}")
+
+
+def _table_info(table: Table, table_path: str) -> dict[str, Any]:
+    """What ``lutgen inspect`` reports of ``table`` (its ``--json`` document, before any plots)."""
+    import numpy as np
+
+    from lut.table.point_result import PointStatus
+
+    feasible = table.status == PointStatus.FEASIBLE.code
+
+    def stats(values: np.ndarray) -> dict[str, float | None]:
+        v = np.asarray(values, dtype=float)[feasible]
+        v = v[np.isfinite(v)]
+        if v.size == 0:
+            return {"min": None, "median": None, "max": None}
+        return {"min": float(v.min()), "median": float(np.median(v)), "max": float(v.max())}
+
+    return {
+        "table": table_path, "schema_version": int(table.attrs["schema_version"]),
+        "model_hash": table.model_hash, "grid_kind": table.attrs.get("grid_kind"),
+        "axes": {name: [float(x) for x in values] for name, values in zip(table.axis_names, table.axis_values,
+                                                                            strict=True)},
+        "counts": table.counts(), "n_points": table.n_points,
+        "solve_time_s": stats(table.field("solve_time_s")),
+        "costs": {key: stats(table.field(f"costs/{key}")) for key in
+                  ("min_distance_m", "approach_energy_m2", "peak_grasp_torque_nm")
+                  if table.has_field(f"costs/{key}")},
+    }
+
+
+@click.command()
+@click.argument("table_path", type=click.Path(dir_okay=False))
+@click.option("--attitude", required=True, metavar="W,X,Y,Z", help="Observed target attitude (unit quaternion).")
+@click.option("--omega-deg-s", required=True, metavar="X,Y,Z", help="Observed body rates (deg/s).")
+@click.option("--refine", is_flag=True, help="Always run a warm-started solve after the interpolation.")
+@click.option("--budget-s", type=float, default=100.0, show_default=True, help="Time budget of the query (s).")
+@click.option("--scenario", "scenario_path", type=click.Path(dir_okay=False), default=None,
+              help="Scenario file, if it moved since the build.")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None, help="Write the plan JSON here.")
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), default=None, help="Also write the samples as CSV.")
+@user_errors
+def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget_s: float,
+          scenario_path: str | None, out_path: str | None, csv_path: str | None) -> None:
+    """Turn an observed target state into a verified plan from a look-up table.
+
+    Exit code 0: feasible; 2: infeasible (violations printed); 1: bad input, table or state.
+    """
+    import numpy as np
+
+    from lut.query.table_query import TableQuery
+    from planner.model.target import TargetState
+    from planner.verify.verifier import summary_lines
+
+    if not 0 < budget_s <= MAX_BUDGET_S:
+        raise LutgenError(f"--budget-s: must be in (0, {MAX_BUDGET_S:g}] s, got {budget_s}")
+    quat = parse_floats(attitude, 4, "--attitude")
+    omega = np.radians(parse_floats(omega_deg_s, 3, "--omega-deg-s"))
+    state = TargetState(np.asarray(quat), omega)
+    check_plan_outputs([table_path, *([scenario_path] if scenario_path else [])], out_path, csv_path)
+    tq = TableQuery(table_path, scenario_path)
+    check_plan_outputs([table_path, tq.scenario_path, tq.scenario.robot.urdf_path, tq.scenario.target.source],
+                       out_path, csv_path)
+    result = tq.query(state, budget_s=budget_s, refine=refine)
+    for line in plan_table(result.plan, result.report):
+        click.echo(line)
+    for line in summary_lines(result.report):
+        click.echo(line)
+    lat = result.latency_s
+    click.echo(f"source {result.source} (corners {result.corners_used}); table load {tq.load_time_s:.2f} s; "
+               + ", ".join(f"{k[:-2]} {v * 1e3:.1f} ms" for k, v in lat.items()))
+    if result.refine_failure:
+        click.echo(f"refine did not finish: {result.refine_failure}", err=True)
+    export_and_verdict(result.plan, result.report, out_path, csv_path)
+
+
+COMMANDS = (build, inspect, query)
