@@ -55,7 +55,7 @@ class _DistanceJacobian(ca.Callback):
 
 
 class SceneDistanceCallback(ca.Callback):
-    """``d = f(poses)``: signed distances (m) of every pair of ``scene`` at ``n_points`` via points.
+    """``d = f(poses)``: signed distances [m] of every pair of ``scene`` at ``n_points`` via points.
 
     ``frame_order`` fixes where each frame's pose sits in a point's block of the input vector.
     """

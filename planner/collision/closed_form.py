@@ -35,7 +35,7 @@ from planner.model.shapes import Box, Capsule, Shape
 
 Array = NDArray[np.float64]
 
-# Below this core separation (m) the direction between the witness points carries no information.
+# Below this core separation [m] the direction between the witness points carries no information.
 DEGENERATE_M = 1e-9
 # Cross products shorter than this (relative) are not candidate axes: the segment is parallel to that edge.
 _PARALLEL_REL = 1e-12
@@ -223,7 +223,7 @@ def _to_world(T: Array, x: Array, direction: bool = False) -> Array:
 
 
 def box_segment(half: Array, T_box: Array, p: Array, u: Array) -> tuple[Array, Array, Array, Array]:
-    """Signed core distance (m) of a box (half sides ``half``, pose ``T_box``) and segments ``p + s u`` (world).
+    """Signed core distance [m] of a box (half sides ``half``, pose ``T_box``) and segments ``p + s u`` (world).
 
     Returns ``(d, c_box, c_seg, n)``: ``c_seg − c_box = d n``, ``n`` moves the segment away (world).
     """
@@ -291,7 +291,7 @@ def _box_segment_penetration(half: Array, a: Array, du: Array) -> tuple[Array, A
 
 
 def box_box(half_a: Array, T_a: Array, half_b: Array, T_b: Array) -> tuple[Array, Array, Array, Array]:
-    """Signed core distance (m) of two boxes; ``(d, c_a, c_b, n)`` with ``c_b − c_a = d n`` (world)."""
+    """Signed core distance [m] of two boxes; ``(d, c_a, c_b, n)`` with ``c_b − c_a = d n`` (world)."""
     R = np.einsum("nji,njk->nik", T_a[:, :3, :3], T_b[:, :3, :3])  # B's axes in A's frame (columns)
     c = _to_frame(T_a, T_b[:, :3, 3])
     depth, n = _box_box_sat(half_a, half_b, R, c)

@@ -1,4 +1,4 @@
-"""The handle-contact rule: the clearance (m) every collision pair must keep, phase by phase.
+"""The handle-contact rule: the clearance [m] every collision pair must keep, phase by phase.
 
 * Approach: every pair keeps ``limits.collision_margin_m``, the gripper against the handle included.
 * Tracking: the gripper–handle pair keeps the margin *less the distance the back-off has closed*,
@@ -24,7 +24,7 @@ APPROACH, TRACKING, STABILIZATION = 0, 1, 2  # phase indices, as in a plan's pha
 
 
 def closed_backoff_m(backoff0_m: float, t_into_tracking_s: float, tracking_s: float) -> float:
-    """How much of the pre-grasp back-off ``backoff0_m`` (m) the tracking has closed ``t`` s into it."""
+    """How much of the pre-grasp back-off ``backoff0_m`` [m] the tracking has closed ``t`` s into it."""
     return backoff0_m - backoff_m(backoff0_m, t_into_tracking_s, tracking_s)
 
 

@@ -40,7 +40,7 @@ class PairDistance:
     """
 
     pair: tuple[str, str]  # (body A, body B)
-    distance_m: float  # signed: > 0 separated, < 0 minus the penetration depth (m)
+    distance_m: float  # signed: > 0 separated, < 0 minus the penetration depth [m]
     p_world_a: Array  # witness point on A's surface (world, m)
     p_world_b: Array  # witness point on B's surface (world, m)
     normal_world: Array  # unit; moving B by +ε n (or A by -ε n) increases distance_m by ε
@@ -188,7 +188,7 @@ class CollisionScene:
         return out
 
     def distance_arrays(self, T_world_frame: Mapping[str, ArrayLike]) -> tuple[Array, ...]:
-        """:meth:`distances` as arrays, one row per pair: distances (m), witness points on A and on B, unit
+        """:meth:`distances` as arrays, one row per pair: distances [m], witness points on A and on B, unit
         normals (world)."""
         sweep = self.sweep({f: np.asarray(T, dtype=float)[None] for f, T in T_world_frame.items()})
         return sweep.distance_m[0], sweep.p_world_a[0], sweep.p_world_b[0], sweep.normal_world[0]

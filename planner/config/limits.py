@@ -20,7 +20,7 @@ class Limit:
 
 
 LIMITS: dict[str, Limit] = {
-    # scenario: durations (s) — a plan samples them at 0.01 s and the NLPs integrate over them
+    # scenario: durations [s] — a plan samples them at 0.01 s and the NLPs integrate over them
     "phases.approach_s": Limit(300.0, unit="s"),
     "phases.tracking_s": Limit(60.0, unit="s"),
     "phases.stabilization_s": Limit(600.0, unit="s"),
@@ -43,7 +43,7 @@ LIMITS: dict[str, Limit] = {
     "target_state.omega_body_deg_s": Limit(360.0, unit="°/s"),
     "robot.base_offset_x_m": Limit(100.0, unit="m"), "robot.base_offset_z_m": Limit(100.0, unit="m"),
     "robot.base_offset_guess_m": Limit(100.0, unit="m"),
-    # target: sizes (m) and mass (kg)
+    # target: sizes [m] and mass [kg]
     "mass_kg": Limit(1e6, unit="kg"), "com_position_m": Limit(1000.0, unit="m"),
     "shapes.size_m": Limit(100.0, unit="m"), "shapes.radius_m": Limit(50.0, unit="m"),
     "shapes.length_m": Limit(100.0, unit="m"), "shapes.position_m": Limit(1000.0, unit="m"),

@@ -28,10 +28,10 @@ ODE_ATOL = 1e-12
 
 
 def euler_rhs(inertia_body: ArrayLike, omega_body: ArrayLike) -> NDArray[np.float64]:
-    """Torque-free Euler equations: ``ω̇ = I⁻¹ (-ω × I ω)`` (rad/s²), body frame.
+    """Torque-free Euler equations: ``ω̇ = I⁻¹ (-ω × I ω)`` [rad/s²], body frame.
 
     ``inertia_body`` is 3×3 (kg·m², body frame, validated: ``ConfigError`` if not SPD); ``omega_body``
-    (rad/s) is ``(3,)`` or ``(n, 3)`` and the result has the same shape. A full (non-diagonal) inertia is
+    [rad/s] is ``(3,)`` or ``(n, 3)`` and the result has the same shape. A full (non-diagonal) inertia is
     accepted, since the equation holds in any body-fixed frame.
     """
     inertia = validate_inertia(inertia_body)
@@ -69,7 +69,7 @@ def _is_pure_spin(inertia: NDArray[np.float64], omega_body: NDArray[np.float64])
 
 @dataclass(frozen=True)
 class AttitudeTrajectory:
-    """Attitude and body rates of the target on ``[0, t_end_s]`` (s), evaluable at any time.
+    """Attitude and body rates of the target on ``[0, t_end_s]`` [s], evaluable at any time.
 
     Built by :func:`propagate`. ``dense_solution`` is scipy's DOP853 dense output of the 7-state
     ``[q_world_body (4), ω_body (3)]``, or ``None`` for a pure spin, evaluated in closed form
@@ -148,7 +148,7 @@ def propagate(
     *,
     force_integration: bool = False,
 ) -> AttitudeTrajectory:
-    """Propagate torque-free attitude motion from ``state`` (at t = 0) to ``t_end_s`` (s).
+    """Propagate torque-free attitude motion from ``state`` (at t = 0) to ``t_end_s`` [s].
 
     ``inertia_body`` (3×3 SPD, kg·m², body frame; ``ConfigError`` otherwise). A pure spin about a principal
     axis is evaluated in closed form; otherwise DOP853 (rtol = atol = 1e-12) with dense output integrates

@@ -10,12 +10,12 @@ every target.
 The geometry vector (:data:`GEOMETRY_SIZE` numbers, SI, 3×3 matrices column-major):
 
 =========  ====================================================================
-``[0]``      mass of the last link with the target (kg)
-``[1:4]``    its COM in the last link's frame (m)
-``[4:13]``   its inertia about that COM, last link's frame (kg·m²)
-``[13]``     target mass (kg)
-``[14:23]``  target inertia about its COM, target body frame (kg·m²)
-``[23:26]``  target body origin (its COM) in the ee (grasp) frame, ``p_ee_target`` (m)
+``[0]``      mass of the last link with the target [kg]
+``[1:4]``    its COM in the last link's frame [m]
+``[4:13]``   its inertia about that COM, last link's frame [kg·m²]
+``[13]``     target mass [kg]
+``[14:23]``  target inertia about its COM, target body frame [kg·m²]
+``[23:26]``  target body origin (its COM) in the ee (grasp) frame, ``p_ee_target`` [m]
 ``[26:35]``  ``R_ee_target``
 =========  ====================================================================
 """

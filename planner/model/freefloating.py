@@ -83,7 +83,7 @@ class MomentumMap:
 
 
 def momentum_map(robot: RobotModel, q: ca.SX | ca.MX) -> MomentumMap:
-    """Build the momentum-map quantities of the module docstring for symbolic ``q`` (rad)."""
+    """Build the momentum-map quantities of the module docstring for symbolic ``q`` [rad]."""
     kin = chain_kinematics(robot, q)
     n = robot.n_joints
     zeros = ca.SX.zeros if isinstance(q, ca.SX) else ca.MX.zeros
@@ -200,7 +200,7 @@ class FreeFloatingModel:
     ) -> Array:
         """Base poses ``[p (3), quat (4)]`` at ``times_s`` by RK4 along a joint motion (numeric).
 
-        ``joint_state(t) -> (q, qd)`` evaluates the joint motion at any time (s); RK4 stages use the
+        ``joint_state(t) -> (q, qd)`` evaluates the joint motion at any time [s]; RK4 stages use the
         midpoint. Returns (len(times_s), 7).
         """
         t = np.asarray(times_s, dtype=float)

@@ -38,7 +38,7 @@ def quats_to_matrices(q_wxyz: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def quat_exp_pure_rows(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``exp([0, v])`` for (n, 3) ``v`` (rad): ``[cos‖v‖, sin‖v‖ v/‖v‖]``, smooth at ``v = 0``."""
+    """``exp([0, v])`` for (n, 3) ``v`` [rad]: ``[cos‖v‖, sin‖v‖ v/‖v‖]``, smooth at ``v = 0``."""
     angle = np.linalg.norm(v, axis=-1)
     # np.sinc(x) = sin(πx)/(πx): avoids the 0/0 at zero rotation without a branch.
     sin_over_angle = np.sinc(angle / np.pi)

@@ -36,7 +36,7 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class BodyInertia:
-    """Rigid-body inertia in its body frame: mass (kg), COM (m), inertia about the COM (kg·m²)."""
+    """Rigid-body inertia in its body frame: mass [kg], COM [m], inertia about the COM [kg·m²]."""
 
     mass_kg: float
     com_body_m: Array
@@ -90,12 +90,12 @@ class RobotModel:
 
     @property
     def p_base_joint1_m(self) -> Array:
-        """Origin of the first joint in the base frame (m); its axis passes through it for every q."""
+        """Origin of the first joint in the base frame [m]; its axis passes through it for every q."""
         return self.joints[0].T_parent_joint[:3, 3].copy()
 
     @property
     def reach_from_joint1_m(self) -> float:
-        """Upper bound of ``|p_ee(q) − p_joint1|`` over all q (m).
+        """Upper bound of ``|p_ee(q) − p_joint1|`` over all q [m].
 
         The end-effector position is the first joint's origin plus the chain's later translations, each
         rotated by the joints before it; rotations keep lengths, so the sum of their norms bounds it.
@@ -317,7 +317,7 @@ def pin_velocity(R_world_base: Array, v_world_base: Array, omega_world_base: Arr
 
 
 def _rodrigues(axis: Array, angle: ca.SX | ca.MX) -> ca.SX | ca.MX:
-    """Rotation about a constant unit axis by a symbolic angle (rad)."""
+    """Rotation about a constant unit axis by a symbolic angle [rad]."""
     K = ca.DM(np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]))
     return ca.DM.eye(3) + ca.sin(angle) * K + (1 - ca.cos(angle)) * ca.mtimes(K, K)
 
@@ -340,7 +340,7 @@ class ChainKinematics:
 
 
 def chain_kinematics(robot: RobotModel, q: ca.SX | ca.MX) -> ChainKinematics:
-    """Forward kinematics of the serial chain in the base frame for symbolic joint angles ``q`` (rad)."""
+    """Forward kinematics of the serial chain in the base frame for symbolic joint angles ``q`` [rad]."""
     R = [ca.SX.eye(3) if isinstance(q, ca.SX) else ca.MX.eye(3)]
     p = [ca.SX.zeros(3) if isinstance(q, ca.SX) else ca.MX.zeros(3)]
     axes, origins = [], []

@@ -87,7 +87,7 @@ def axis_angle_to_matrix(axis: ArrayLike, angle_rad: float) -> NDArray[np.float6
 
 
 def rotation_angle_between(R_a: ArrayLike, R_b: ArrayLike) -> float:
-    """Angle (rad) of the relative rotation ``R_aᵀ R_b``, in [0, π]."""
+    """Angle [rad] of the relative rotation ``R_aᵀ R_b``, in [0, π]."""
     R = np.asarray(R_a, dtype=float).T @ np.asarray(R_b, dtype=float)
     c = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
     return float(np.arccos(c))
@@ -99,7 +99,7 @@ _LOG_NEAR_PI_RAD = 1e-3
 
 
 def rotation_log(R: ArrayLike) -> NDArray[np.float64]:
-    """Rotation vectors ``φ = θ u`` (rad) with ``R = exp([φ]×)`` for a stack of rotations (..., 3, 3).
+    """Rotation vectors ``φ = θ u`` [rad] with ``R = exp([φ]×)`` for a stack of rotations (..., 3, 3).
 
     θ = atan2(‖v‖, (tr R − 1)/2) with ``v = vee(R − Rᵀ)/2 = sin θ · u``: full precision for small angles,
     where arccos of the trace is not; near π the axis comes from ``(R + Rᵀ)/2 − cos θ I = (1 − cos θ) u uᵀ``.

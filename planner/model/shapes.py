@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 @dataclass(frozen=True)
 class Box:
-    """Axis-aligned box in its shape frame, full side lengths ``size_m`` (m)."""
+    """Axis-aligned box in its shape frame, full side lengths ``size_m`` [m]."""
 
     size_m: tuple[float, float, float]
 
@@ -25,7 +25,7 @@ class Box:
 
 @dataclass(frozen=True)
 class Capsule:
-    """Capsule along the shape frame's z axis: segment length ``length_m`` (m), radius ``radius_m`` (m)."""
+    """Capsule along the shape frame's z axis: segment length ``length_m`` [m], radius ``radius_m`` [m]."""
 
     radius_m: float
     length_m: float
@@ -47,7 +47,7 @@ class PlacedShape:
 
 
 def make_transform(R: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
-    """4×4 homogeneous transform from a rotation matrix and a translation (m)."""
+    """4×4 homogeneous transform from a rotation matrix and a translation [m]."""
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = p

@@ -77,7 +77,7 @@ class TargetBody:
 class TargetMotion:
     """A :class:`TargetBody` moving torque-free from ``state``: body and grasp-frame kinematics in world.
 
-    Times are a scalar or 1-D array in ``[0, t_end_s]`` (s); results have a leading axis ``n``.
+    Times are a scalar or 1-D array in ``[0, t_end_s]`` [s]; results have a leading axis ``n``.
     The COM is inertially fixed, so the grasp point's velocity and acceleration are purely rotational.
     """
 

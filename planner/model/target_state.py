@@ -20,7 +20,7 @@ class TargetState:
     """Observed target state at ``t = 0``.
 
     ``attitude_wxyz``: ``q_world_body``, unit (within 1e-6; stored renormalised).
-    ``omega_body_rad_s``: angular velocity of the body w.r.t. the world, in the body frame (rad/s).
+    ``omega_body_rad_s``: angular velocity of the body w.r.t. the world, in the body frame [rad/s].
     Invalid values raise ``TargetStateError`` naming the field.
     """
 

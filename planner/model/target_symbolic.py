@@ -31,7 +31,7 @@ def _attitude_rate(inertia_body: NDArray[np.float64], x: ca.SX | ca.MX) -> ca.SX
 def prediction_function(inertia_body: NDArray[np.float64], n_steps: int) -> ca.Function:
     """CasADi Function ``(attitude_wxyz0, omega_body0, t) -> (attitude_wxyz(t), omega_body(t))``.
 
-    ``t`` (s) may be symbolic; ``n_steps`` RK4 steps of length t/n_steps; the quaternion is renormalised.
+    ``t`` [s] may be symbolic; ``n_steps`` RK4 steps of length t/n_steps; the quaternion is renormalised.
     """
     x = ca.SX.sym("x", 7)
     rate = ca.Function("target_rate", [x], [_attitude_rate(np.asarray(inertia_body, dtype=float), x)])

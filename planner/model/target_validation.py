@@ -25,7 +25,7 @@ def frozen_copy(a: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def validate_inertia(inertia_body: ArrayLike, field: str = "inertia_body_kg_m2") -> NDArray[np.float64]:
-    """Check a 3×3 inertia (kg·m²) is finite, symmetric and positive definite; return it symmetrised."""
+    """Check a 3×3 inertia [kg·m²] is finite, symmetric and positive definite; return it symmetrised."""
     try:
         inertia = np.asarray(inertia_body, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -65,7 +65,7 @@ def body_field_error(field: str, problem: str, value: Any) -> LutgenError:
 
 
 def validate_times(times_s: ArrayLike, t_end_s: float) -> NDArray[np.float64]:
-    """Times (s) as a 1-D array inside ``[0, t_end_s]``; scalars become length-1 arrays."""
+    """Times [s] as a 1-D array inside ``[0, t_end_s]``; scalars become length-1 arrays."""
     times = np.atleast_1d(np.asarray(times_s, dtype=float))
     if times.ndim != 1:
         raise ValueError(f"times_s must be a scalar or a 1-D array, got shape {times.shape}")

@@ -36,20 +36,20 @@ from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend, ga
 
 Array = NDArray[np.float64]
 
-FD_STEP_S = 1e-5
+FD_STEP_S = 1e-5  # central-difference step of the desired twist [s]
 RATE_CAP_FRACTION = 0.97  # the IK never commands more than this fraction of a joint's rate limit
 RATE_CAP_POWER = 32  # exponent of the smooth cap (even: the cap is a smooth function of q̇)
 
 
 @dataclass(frozen=True)
 class TrackingResult:
-    """Dense tracking trajectory; times are absolute (s since the observation)."""
+    """Dense tracking trajectory; times are absolute [s since the observation]."""
 
-    t: Array
-    q: Array  # (n, 7) rad
-    qd: Array  # (n, 7) rad/s
-    qdd_end: Array  # (7,) rad/s², joint acceleration at the grasp instant
-    x_base: Array  # (n, 7) [p_world_base, quat_world_base]
+    t: Array  # (n,) [s]
+    q: Array  # (n, 7) [rad]
+    qd: Array  # (n, 7) [rad/s]
+    qdd_end: Array  # (7,) [rad/s²], joint acceleration at the grasp instant
+    x_base: Array  # (n, 7) [p_world_base [m], quat_world_base]
     free_axis_angle_rad: float
     position_error_m: float  # at the grasp instant
     orientation_error_rad: float
@@ -59,7 +59,7 @@ class TrackingResult:
 
 
 def free_axis_angle(R_world_grasp: Array, R_world_ee: Array, axis: Array | None) -> float:
-    """Angle ψ (rad) about the grasp frame's free axis that best aligns the grasp frame with the ee."""
+    """Angle ψ [rad] about the grasp frame's free axis that best aligns the grasp frame with the ee."""
     if axis is None:
         return 0.0
     M = R_world_grasp.T @ R_world_ee
@@ -261,7 +261,7 @@ def _integrate(law: _RateLaw, stages: list[float], steps: int, dt: float, q0: Ar
 
 
 def _stage_times(steps: int, dt: float) -> list[float]:
-    """Phase times (s) of the RK4 integration's stages: ``[0, dt/2, dt, dt + dt/2, 2 dt, …]``, each step's
+    """Phase times [s] of the RK4 integration's stages: ``[0, dt/2, dt, dt + dt/2, 2 dt, …]``, each step's
     midpoint and end formed from ``i·dt`` (the integration and the batched target poses share this list)."""
     stages = [0.0]
     for i in range(steps):
@@ -271,7 +271,7 @@ def _stage_times(steps: int, dt: float) -> list[float]:
 
 
 def _difference_times(t: float) -> tuple[float, float]:
-    """The two phase times (s) of the desired twist's central difference at ``t`` (one-sided at 0)."""
+    """The two phase times [s] of the desired twist's central difference at ``t`` (one-sided at 0)."""
     return t + FD_STEP_S, max(t - FD_STEP_S, 0.0)
 
 

@@ -26,7 +26,7 @@ def smoothstep5(s: ArrayLike) -> NDArray[np.float64]:
 
 
 def backoff_m(backoff0_m: float, t_s: float, tracking_s: float) -> float:
-    """Remaining back-off distance (m) at time ``t_s`` into the tracking phase."""
+    """Remaining back-off distance [m] at time ``t_s`` into the tracking phase."""
     return float(backoff0_m * (1.0 - smoothstep5(t_s / (CLOSE_END * tracking_s))))
 
 

@@ -105,7 +105,7 @@ def rate_consistency_check(robot: RobotModel, t: Array, q: Array, qd: Array, pha
 
 @dataclass(frozen=True)
 class CollisionSamples:
-    """Per verified sample: the smallest signed distance (m) over the pairs held to the full margin, the pair
+    """Per verified sample: the smallest signed distance [m] over the pairs held to the full margin, the pair
     that has it and its witness points; per pair, its smallest distance while held to the full margin."""
 
     min_distance_m: Array  # [n]

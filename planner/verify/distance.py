@@ -50,7 +50,7 @@ from planner.model.shapes import Box, Capsule
 Array = NDArray[np.float64]
 Shape = Box | Capsule
 
-# Closest core points nearer than this (m) are touching: their direction is rounding, use a structural normal.
+# Closest core points nearer than this [m] are touching: their direction is rounding, use a structural normal.
 TOUCH_M = 1e-10
 # Separating-axis cross products of unit directions with a norm (sine) at or below this are not candidates.
 AXIS_MIN_SIN = 1e-8
@@ -74,7 +74,7 @@ class PairDistances:
 
 @dataclass(frozen=True)
 class _Core:
-    """Core signed distance (m) (n,), a core witness on A and the unit normal A → B (3, n), world frame."""
+    """Core signed distance [m] (n,), a core witness on A and the unit normal A → B (3, n), world frame."""
 
     d: Array
     c_a: Array
@@ -186,7 +186,7 @@ def _segment_candidates(ca: Array, ua: Array, la: float, cb: Array, ub: Array, l
 
 
 def _segment_segment(ca: Array, ua: Array, la: float, cb: Array, ub: Array, lb: float) -> _Core:
-    """Distance (m) of segments ``c ± l u`` (centres and unit directions (3, n), half-lengths l >= 0)."""
+    """Distance [m] of segments ``c ± l u`` (centres and unit directions (3, n), half-lengths l >= 0)."""
     s, t = _segment_candidates(ca, ua, la, cb, ub, lb)
     pa = ca[:, None] + s * ua[:, None]  # (3, 5, n); NaN for a stationary point outside
     pb = cb[:, None] + t * ub[:, None]
@@ -205,7 +205,7 @@ def _segment_segment(ca: Array, ua: Array, la: float, cb: Array, ub: Array, lb: 
 # ------------------------------------------------------------------------------------------- segment-box
 def _segment_box_local(m: Array, u: Array, ell: Array, h: Array) -> tuple[Array, Array]:
     """Closest parameter ``t`` (|t| <= ell, m) of segments ``m + t u`` to boxes ``|x_i| <= h_i`` in the boxes'
-    frames, and the distance (m). Shapes: m, u (3, *S), ell broadcastable to S, h (3,). Minimises the convex
+    frames, and the distance [m]. Shapes: m, u (3, *S), ell broadcastable to S, h (3,). Minimises the convex
     piecewise quadratic ``f(t) = Σ_i max(|m_i + t u_i| - h_i, 0)²`` exactly on each piece between breakpoints."""
     ell = np.broadcast_to(ell, m.shape[1:])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -257,7 +257,7 @@ def _best_axis(push_plus: Array, push_minus: Array, axes: Array, valid: Array) -
 
 
 def _box_segment(h: Array, T_box: Array, cs: Array, us: Array, ell: float) -> tuple[Array, Array, Array, Array]:
-    """Signed core distance (m) of boxes (half sizes ``h``, poses ``T_box`` (4, 4, n)) and segments ``cs ± ell us``
+    """Signed core distance [m] of boxes (half sizes ``h``, poses ``T_box`` (4, 4, n)) and segments ``cs ± ell us``
     ((3, n) each): (distance, witness on the box, witness on the segment, unit normal box → segment), world
     frame, the witnesses in the given poses (penetrating: a contact pair, moved back by the depth)."""
     R, cb = T_box[:3, :3], T_box[:3, 3]
@@ -277,7 +277,7 @@ def _box_segment(h: Array, T_box: Array, cs: Array, us: Array, ell: float) -> tu
 def _box_segment_apart(h: Array, R: Array, cb: Array, m: Array, u: Array, ell: float,
                        axis: Array) -> tuple[Array, Array, Array, Array]:
     """Closest points of boxes (rotations ``R`` (3, 3, n), centres ``cb``) and segments ``m ± ell u`` given in
-    the box frames, the cores taken as apart or touching: (distance (m), box point, segment point, unit normal
+    the box frames, the cores taken as apart or touching: (distance [m], box point, segment point, unit normal
     box → segment), world frame. Touching cores take the separating ``axis`` (box frame) as their normal."""
     t, d = _segment_box_local(m, u, np.asarray(ell, dtype=float), h)
     q = m + t * u
@@ -288,7 +288,7 @@ def _box_segment_apart(h: Array, R: Array, cb: Array, m: Array, u: Array, ell: f
 
 # ----------------------------------------------------------------------------------------------- box-box
 def _edges(h: Array) -> tuple[Array, Array, Array]:
-    """A box's 12 edges in its frame: centres and unit directions (3, 12, 1), half-lengths (12, 1) (m)."""
+    """A box's 12 edges in its frame: centres and unit directions (3, 12, 1), half-lengths (12, 1) [m]."""
     axis = np.repeat(np.arange(3), 4)
     signs = np.tile(np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]), (3, 1))
     centres = np.zeros((12, 3))
@@ -319,7 +319,7 @@ def _box_box_sat(ha: Array, hb: Array, R: Array, t: Array) -> tuple[Array, Array
 def _box_box_apart(ha: Array, hb: Array, R: Array, t: Array, axis: Array) -> tuple[Array, Array, Array]:
     """Closest points of boxes taken as apart or touching, in A's frame (B: rotation ``R``, centre ``t``): the
     minimum of the segment-box distance over A's 12 edges against B and B's 12 edges against A. Returns
-    (distance (m), witness on A, unit normal A → B (``axis`` where touching)), A's frame, (n,) and (3, n)."""
+    (distance [m], witness on A, unit normal A → B (``axis`` where touching)), A's frame, (n,) and (3, n)."""
     centre_a, dir_a, half_a = _edges(ha)
     centre_b, dir_b, half_b = _edges(hb)
     m_a, u_a = _rot_t(R, centre_a - t[:, None]), _rot_t(R, dir_a)  # A's edges in B's frame: Rᵀ (x - t)
@@ -337,7 +337,7 @@ def _box_box_apart(ha: Array, hb: Array, R: Array, t: Array, axis: Array) -> tup
 
 
 def _box_box(ha: Array, Ta: Array, hb: Array, Tb: Array) -> _Core:
-    """Signed core distance (m) of boxes with half sizes ``ha``, ``hb`` at poses (4, 4, n)."""
+    """Signed core distance [m] of boxes with half sizes ``ha``, ``hb`` at poses (4, 4, n)."""
     Ra, ca = Ta[:3, :3], Ta[:3, 3]
     R = np.einsum("kin,kjn->ijn", Ra, Tb[:3, :3])  # Raᵀ Rb: B's axes in A's frame
     t = _rot_t(Ra, Tb[:3, 3] - ca)

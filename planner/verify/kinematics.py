@@ -147,7 +147,7 @@ def derivatives(t_s: Array, values: Array, k: ArrayLike, segment: tuple[int, int
 
 
 def rotation_rates(t_s: Array, R: Array, k: ArrayLike, segment: tuple[int, int]) -> tuple[Array, Array]:
-    """World angular velocities (rad/s) and accelerations (rad/s²), (m, 3) each, of the rotations ``R``
+    """World angular velocities [rad/s] and accelerations [rad/s²], (m, 3) each, of the rotations ``R``
     (n×3×3) at the samples k, by FD of the stencil's rotation vectors ``log(R_j R_kᵀ)``."""
     k = np.atleast_1d(np.asarray(k, dtype=int))
     idx = stencils(k, segment, 2)

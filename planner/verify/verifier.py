@@ -115,12 +115,12 @@ class VerifyReport:
     min_distance_m: Array  # smallest signed distance over all pairs, per sample
     closest_pair: list[str]  # per sample: "A-B (shapeA/shapeB)", the pair with min_distance_m
     closest_points_m: Array  # n×2×3 witness points of closest_pair (on A, on B), world frame
-    grasp_wrench: Array  # n×6 [F (N); M (N·m)] on the target at the grasp point, ee frame; 0 before grasp
+    grasp_wrench: Array  # n×6 [F [N]; M [N·m]] on the target at the grasp point, ee frame; 0 before grasp
     ee_pose: PoseSamples  # scenario.robot.ee_frame, pinocchio FK
     grasp_pose: PoseSamples  # grasp frame on the target (free-axis angle applied)
     target_pose: PoseSamples  # target body frame (at its COM)
     base_pose: PoseSamples
-    momentum_world: Array  # n×6 [P (N·s); L_G (N·m·s)]: the chaser's before the grasp, the compound's from it on
+    momentum_world: Array  # n×6 [P [N·s]; L_G [N·m·s]]: the chaser's before the grasp, the compound's from it on
     pair_min_distance_m: dict[str, float] = field(default_factory=dict)  # "A-B" -> min over the samples
     pair_count: int = 0
     step_s: float = 0.0  # largest gap between verified samples
