@@ -5,7 +5,7 @@
   ``margin − (b₀ − b(t))`` with ``b(t)`` the remaining back-off (:func:`~planner.phases.tracking_profile.
   backoff_m`): the gripper may move onto the handle along its approach axis, and only by as much as the
   planned closing; a sideways sweep into the handle still violates it. At the grasp the bound is
-  ``margin − b₀``; the pre-grasp back-off is chosen so that the grasp pose itself keeps it (README).
+  ``margin − b₀``; the pre-grasp back-off is chosen so that the grasp pose itself keeps it (docs/phases.md, Collision).
 * Stabilization: the gripper–handle pair is exempt (the gripper holds the handle).
 Every other pair keeps the margin at all times. The NLPs add their constraint back-off on top of this
 rule; :func:`planner.verify.verifier.verify` checks the rule itself.

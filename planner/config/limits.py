@@ -1,5 +1,7 @@
-"""Sanity limits of configuration values: beyond them a value is surely a typo, and would cost hours or
-gigabytes before the first answer (``stabilization_s = 1e9``, ``via_points = 1e8``, a 10⁷-point grid).
+"""Sanity limits of configuration values: beyond them a value is surely a typo.
+
+Such a value would cost hours or gigabytes before the first answer (``stabilization_s = 1e9``,
+``via_points = 1e8``, a 10⁷-point grid).
 
 Keys are dotted field paths without list indices (``shapes.size_m`` covers ``shapes[2].size_m``); a number
 must lie in ``[low, high]``, every element of a vector in ``[-high, high]`` (``low`` applies to numbers

@@ -1,5 +1,7 @@
-"""The scenario's settings sections (phases, approach, tracking, stabilization, limits, costs, solver) and
-how each is read from its TOML table, with its defaults."""
+"""The scenario's settings sections, each with how it is read from its TOML table and its defaults.
+
+Sections: phases, approach, tracking, stabilization, limits, costs, solver, and the default target state.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Rotations in numpy.
+"""Rotations of single frames in numpy: quaternions, matrices, roll-pitch-yaw, axis-angle, log.
 
 Quaternion convention (the whole project): ``[w, x, y, z]``, unit norm, Hamilton product,
 ``q_a_b`` rotates vectors of frame b into frame a (``v_a = R(q_a_b) v_b``).

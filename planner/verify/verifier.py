@@ -109,18 +109,18 @@ class VerifyReport:
     feasible: bool  # every check passed
     checks: dict[str, CheckResult]  # in a fixed order, see the module docstring
     violations: list[str]  # one human-readable line per failed check
-    t: Array
-    sample_index: Array  # index of each verified sample in the plan's arrays (plan.q[sample_index], …)
-    phase_index: Array  # 0 approach, 1 tracking, 2 stabilization
-    min_distance_m: Array  # smallest signed distance over all pairs, per sample
+    t: Array  # (n,) [s]
+    sample_index: Array  # (n,) index of each verified sample in the plan's arrays (plan.q[sample_index], …)
+    phase_index: Array  # (n,) 0 approach, 1 tracking, 2 stabilization
+    min_distance_m: Array  # (n,) smallest signed distance over all pairs [m]
     closest_pair: list[str]  # per sample: "A-B (shapeA/shapeB)", the pair with min_distance_m
-    closest_points_m: Array  # n×2×3 witness points of closest_pair (on A, on B), world frame
-    grasp_wrench: Array  # n×6 [F [N]; M [N·m]] on the target at the grasp point, ee frame; 0 before grasp
+    closest_points_m: Array  # (n, 2, 3) witness points of closest_pair (on A, on B), world frame [m]
+    grasp_wrench: Array  # (n, 6) [F [N]; M [N·m]] on the target at the grasp point, ee frame; 0 before grasp
     ee_pose: PoseSamples  # scenario.robot.ee_frame, pinocchio FK
     grasp_pose: PoseSamples  # grasp frame on the target (free-axis angle applied)
     target_pose: PoseSamples  # target body frame (at its COM)
     base_pose: PoseSamples
-    momentum_world: Array  # n×6 [P [N·s]; L_G [N·m·s]]: the chaser's before the grasp, the compound's from it on
+    momentum_world: Array  # (n, 6) [P [N·s]; L_G [N·m·s]]: the chaser's before the grasp, the compound's from it on
     pair_min_distance_m: dict[str, float] = field(default_factory=dict)  # "A-B" -> min over the samples
     pair_count: int = 0
     step_s: float = 0.0  # largest gap between verified samples
