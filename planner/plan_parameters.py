@@ -8,7 +8,7 @@ shifts them in time (flat-spin symmetry) and averages them over a cell's corners
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -62,7 +62,7 @@ class PlanParameters:
         ref_tau = members[int(np.argmax(w))].approach.start_delay_s
         taus = np.array([ref_tau + signed_gap(m.approach.start_delay_s, ref_tau, period_s) for m in members])
 
-        def mean(get) -> Array:  # noqa: ANN001 - PlanParameters -> Array
+        def mean(get: Callable[[PlanParameters], Array | None]) -> Array:
             return sum(wi * np.asarray(get(m), dtype=float) for wi, m in zip(w, members, strict=True))
 
         approach = ApproachParameters(params=mean(lambda m: m.approach.params),

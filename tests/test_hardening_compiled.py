@@ -26,7 +26,7 @@ def cache(tmp_path, monkeypatch):
     return folder
 
 
-def _break(library, damage: str, impostor) -> None:  # noqa: ANN001
+def _break(library, damage: str, impostor) -> None:
     if damage == "truncated":  # e.g. a disk that filled up while the library was written
         library.write_bytes(library.read_bytes()[:200])
     else:  # another formula's library under this one's name (a copied cache)

@@ -26,7 +26,7 @@ def scenario_II():
     return load_scenario(SCENARIO_II)
 
 
-def _state(omega_deg_s) -> TargetState:  # noqa: ANN001
+def _state(omega_deg_s) -> TargetState:
     return TargetState(np.array([1.0, 0.0, 0.0, 0.0]), np.radians(omega_deg_s))
 
 

@@ -2,21 +2,20 @@
 
 An NLP's constraint Jacobian pushes every decision direction through each call of its inner SX Functions,
 which CasADi evaluates in its virtual machine. The same expressions generated as C and compiled run several
-times faster (measured on the stabilization's grasp wrench: its Jacobian 1.2 ms → 0.3 ms) with the same
-results, bit for bit: C without fast-math performs the same floating-point operations in the same order.
+times faster with the same results, bit for bit: C without fast-math performs the same floating-point
+operations in the same order.
 
 A library holds the Function and its Jacobian (``jac_<name>``, which CasADi looks up when it differentiates
 an external Function). It is compiled once per machine and cached under :func:`cache_dir`, named by a hash of
-the Function's serialisation (its whole expression graph, 16 ms to form where generating the C takes 0.5 s),
+the Function's serialisation (its whole expression graph, far quicker to form than the C),
 the CasADi version and the compiler, so any change of robot, formula or CasADi version compiles anew, and a
 library that does not give the Function's numbers is never used (checked at every load). Compilation runs
 under a file lock, so a table build's workers wait for one compiler instead of racing, and the library
 appears by atomic rename, so no process ever loads half of one. A cached library that cannot be loaded or
 gives other numbers (truncated by a full disk, copied from another machine) is deleted and compiled once more.
 
-``-O0``: the sources are large (megabytes of straight-line code), where gcc's optimiser is slow; measured
-on the wrench: -O0 compiles in 7 s and evaluates in 0.30 ms, -O1 takes 97 s for 0.17 ms, -O2 112 s for
-0.15 ms.
+``-O0``: the sources are large (megabytes of straight-line code), where gcc's optimiser takes an order of
+magnitude longer to compile than it saves in evaluation.
 
 Without a C compiler (or with ``LUTGEN_COMPILE=0``) the SX Function itself is used: the same answers, more
 slowly. :func:`compiled` never fails because of compilation; it says why it fell back in

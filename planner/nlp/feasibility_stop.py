@@ -2,18 +2,16 @@
 
 When a phase has no cost to optimise (all its weights zero), any point inside the constraints is a
 solution. IPOPT's own test also asks for a small dual infeasibility, which a limited-memory Hessian on
-a few thousand collision and wrench constraints reaches slowly if at all: on scenario II's stabilization
-the iterates are feasible after ~100 iterations and then wander for hundreds more, chasing only the
-1e-6 regulariser. This callback ends the solve there instead ("User_Requested_Stop" in IPOPT's stats;
-the caller reports it as a feasible solution).
+a few thousand collision and wrench constraints reaches slowly if at all: the iterates are feasible long
+before, and then wander chasing only the 1e-6 regulariser. This callback ends the solve there instead
+("User_Requested_Stop" in IPOPT's stats; the caller reports it as ``SolveOutcome.FEASIBLE_POINT_FOUND``).
 
 Optional slack variables of an elastic (ℓ1-penalty) formulation are checked too: a relaxed constraint
-is satisfied only once its slack is below ``slack_tol``. (Elastic mode was tried on the stabilization
-NLP and dropped: it converged fast but into local minima that kept decimetres of collision slack.)
+is satisfied only once its slack is below ``slack_tol``.
 
 The same callback can also end a solve after an iteration budget (``max_iterations`` in :meth:`arm`,
 ``budget_exhausted`` afterwards): the planner gives a stabilization from one grasp a budget when another
-grasp is there to try (:mod:`planner.plan`). The budget works with or without the feasibility test.
+grasp is there to try (:mod:`planner.plan_grasps`). The budget works with or without the feasibility test.
 """
 
 from __future__ import annotations

@@ -2,11 +2,9 @@
 
 IPOPT's linear solver (MUMPS) runs on the OpenBLAS CasADi ships, which by default starts one thread per
 core. Its threaded reductions round differently from the serial ones, and a last-bit difference is
-enough to change a solve: scenario II's cold plan, identical up to its approach parameters (4e-15 apart),
-ended stabilization after 122 iterations feasible with one BLAS thread and at the 400-iteration limit,
-in collision, with two. Same inputs must give the same plan (and table), so that library runs with one
-thread. Nothing is lost: the KKT systems are small enough that two threads were slower per iteration
-(0.42 s vs 0.38 s on that stabilization), and a table build already runs one worker per core.
+enough to change a solve (feasible against the iteration limit, in collision). Same inputs must give the
+same plan (and table), so that library runs with one thread. Nothing is lost: the KKT systems are too small
+to gain from threads, and a table build already runs one worker per core.
 """
 
 from __future__ import annotations
