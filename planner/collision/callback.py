@@ -29,6 +29,8 @@ SWEEP_CACHE_SIZE = 64
 
 
 class _DistanceJacobian(ca.Callback):
+    """The Jacobian of :class:`SceneDistanceCallback`: its structural nonzeros, from the witnesses and normals."""
+
     def __init__(self, owner: SceneDistanceCallback, name: str, opts: dict) -> None:
         ca.Callback.__init__(self)
         self.owner = owner

@@ -92,6 +92,7 @@ class ShapeRows:
 
     @staticmethod
     def of(shapes: list[Shape]) -> ShapeRows:
+        """Rows of one kind of shape (all boxes or all capsules), in the given order."""
         if all(isinstance(sh, Box) for sh in shapes):
             half = np.array([sh.size_m for sh in shapes], dtype=float).reshape(-1, 3) * 0.5
             return ShapeRows(True, half, np.zeros(len(shapes)), np.zeros(len(shapes)))

@@ -39,6 +39,7 @@ class CollisionBody:
 
     @property
     def frame_name(self) -> str:
+        """The name of the pose this body moves with."""
         return self.frame or self.name
 
 

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Limit:
+    """Sanity range of one field: a number in ``[low, high]``, every element of a vector in ``[-high, high]``."""
+
     high: float
     low: float = float("-inf")
     unit: str = ""

@@ -74,18 +74,22 @@ class RobotModel:
 
     @property
     def n_joints(self) -> int:
+        """Number of arm joints (7 for the paper's chaser)."""
         return len(self.joints)
 
     @property
     def q_min(self) -> Array:
+        """(n_joints,) lower joint limits [rad]."""
         return np.array([j.lower_rad for j in self.joints])
 
     @property
     def q_max(self) -> Array:
+        """(n_joints,) upper joint limits [rad]."""
         return np.array([j.upper_rad for j in self.joints])
 
     @property
     def qd_max(self) -> Array:
+        """(n_joints,) joint rate limits [rad/s]."""
         return np.array([j.velocity_rad_s for j in self.joints])
 
     @property
@@ -105,6 +109,7 @@ class RobotModel:
 
     @property
     def total_mass_kg(self) -> float:
+        """Mass of the base and every link [kg]."""
         return float(sum(b.mass_kg for b in self.inertias))
 
     def with_payload(self, payload: BodyInertia, T_ee_payload: Array) -> RobotModel:
@@ -232,6 +237,7 @@ def _ee_placement(model: pin.Model, ee_frame: str, src: str) -> Array:
 
 
 def _revolute_axis(jm: pin.JointModel) -> Array | None:
+    """(3,) unit axis of a revolute joint in its joint frame, or None when the joint is not revolute."""
     name = jm.shortname()
     if name in ("JointModelRX", "JointModelRY", "JointModelRZ"):
         return np.eye(3)["XYZ".index(name[-1])]
@@ -250,11 +256,13 @@ def _body_of_joint(model: pin.Model, jid: int) -> str:
 
 
 def _inertia(inertia: pin.Inertia) -> BodyInertia:
+    """A pinocchio inertia as plain numbers: mass [kg], COM [m], inertia about the COM [kg·m²]."""
     return BodyInertia(float(inertia.mass), np.array(inertia.lever, dtype=float),
                        np.array(inertia.inertia, dtype=float))
 
 
 def _collision_shapes(tree: ET.ElementTree, body_names: list[str], src: str) -> tuple[tuple[PlacedShape, ...], ...]:
+    """Per body, its ``<collision>`` elements as shapes placed in the body frame (cylinders read as capsules)."""
     by_link = {link.get("name"): link for link in tree.getroot().iter("link")}
     result = []
     for body in body_names:
@@ -288,6 +296,7 @@ def _collision_shapes(tree: ET.ElementTree, body_names: list[str], src: str) -> 
 
 
 def _floats(text: str, src: str, field: str) -> list[float]:
+    """The space-separated numbers of a URDF attribute."""
     try:
         return [float(x) for x in text.split()]
     except ValueError:

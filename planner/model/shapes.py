@@ -20,6 +20,7 @@ class Box:
     size_m: tuple[float, float, float]
 
     def scaled(self, factor: float) -> Box:
+        """This box with every side multiplied by ``factor``."""
         return Box(tuple(factor * s for s in self.size_m))  # type: ignore[arg-type]
 
 
@@ -31,6 +32,7 @@ class Capsule:
     length_m: float
 
     def scaled(self, factor: float) -> Capsule:
+        """This capsule with its radius and length multiplied by ``factor``."""
         return Capsule(factor * self.radius_m, factor * self.length_m)
 
 

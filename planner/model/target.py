@@ -93,14 +93,17 @@ class TargetMotion:
 
     @property
     def body(self) -> TargetBody:
+        """The moving body's mass properties and grasp frame."""
         return self._body
 
     @property
     def trajectory(self) -> AttitudeTrajectory:
+        """The attitude and body rates over ``[0, t_end_s]``."""
         return self._trajectory
 
     @property
     def t_end_s(self) -> float:
+        """End of the propagated interval [s]."""
         return self._trajectory.t_end_s
 
     def body_pose(self, times_s: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

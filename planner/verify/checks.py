@@ -70,6 +70,7 @@ def make_check(name: str, value: float, limit: float, unit: str, where: str, t_s
 
 
 def when(t_s: float, phase: int) -> str:
+    """``t = 12.345 s (tracking)``: where a check's worst value was found."""
     return f"t = {t_s:.3f} s ({PHASE_NAMES[phase]})"
 
 
@@ -243,6 +244,7 @@ def join_velocity_checks(robot: RobotModel, phases: dict[str, tuple[float, float
 
 
 def end_velocity_check(robot: RobotModel, t: Array, qd: Array) -> CheckResult:
+    """The largest joint rate at the end of stabilization (the arm must be at rest)."""
     j = int(np.argmax(np.abs(qd[-1])))
     return make_check("end_velocity", abs(qd[-1, j]), END_VELOCITY_TOL_RAD_S, "rad/s",
                       f"{robot.joints[j].name} at the end of stabilization, t = {t[-1]:.3f} s", t[-1])
