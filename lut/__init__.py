@@ -1,1 +1,1 @@
-"""lutgen's look-up table: grid sweeps of the planner, the HDF5 store, queries, and the CLI."""
+"""lutgen's look-up table: the table's data, the one-point solve, the build, the online query, the outputs, the CLI."""

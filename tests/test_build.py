@@ -128,7 +128,7 @@ run_build(sys.argv[1], sys.argv[2], BuildOptions(jobs=2, solver="{fake}", resume
 
 def _journaled_points(path: Path) -> int:
     """Intact point records in a journal (its first frame is the header)."""
-    from lut.table.journal import MAGIC, read_frames
+    from lut.table.journal_format import MAGIC, read_frames
 
     if not path.exists():
         return 0

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from lut.table import table_writer
-from lut.table.journal import MAGIC, Journal
+from lut.table.journal import Journal
+from lut.table.journal_format import MAGIC
 from lut.table.model_identity import model_hash
 from lut.table.schema import SCHEMA_VERSION, STATUS_CODES, TableError
 from lut.table.store import Table

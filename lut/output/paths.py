@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from lut.table.journal import MAGIC as JOURNAL_SIGNATURE
+from lut.table.journal_format import MAGIC as JOURNAL_SIGNATURE
 from planner.errors import LutgenError
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"

@@ -1,1 +1,2 @@
-"""The look-up table's data: grid and its symmetries, the HDF5 store, the crash-safe journal, per-point records."""
+"""The look-up table's data: the grid and its symmetries, typed point results and their flat records, the HDF5
+store (schema, writer, reader) and the crash-safe build journal."""

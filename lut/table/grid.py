@@ -84,39 +84,35 @@ class Grid:
         self.default_state = default_state
         self.major_axis_body: Array | None = None
         if self.kind == "flat_spin":
-            eig, vecs = np.linalg.eigh(self.inertia_body_kg_m2)
-            if eig[2] - eig[1] <= 1e-9 * abs(eig[2]):
-                raise ConfigError(config.source, "kind", "a flat-spin grid needs a unique major axis, but the "
-                                  f"target's two largest principal moments are equal ({eig[1]:g}, {eig[2]:g})")
-            e = vecs[:, 2]
-            e = e if e[int(np.argmax(np.abs(e)))] > 0 else -e
-            self.major_axis_body = e / np.linalg.norm(e)
+            self.major_axis_body = _major_axis(self.inertia_body_kg_m2, config.source)
             self._R_ref = _minimal_rotation(self.major_axis_body, np.array([1.0, 0.0, 0.0]))
-
-        given = {ax.name: ax for ax in config.axes}
-        names = AXIS_NAMES[self.kind]
         try:
             default_raw: Array | None = self._raw_coordinates(default_state)
             default_problem = ""
         except TargetStateError as exc:
             default_raw, default_problem = None, str(exc)
-        axes = []
-        for i, name in enumerate(names):
-            if name in given:
-                axes.append(given[name])
-                continue
-            if default_raw is None:
-                raise ConfigError(config.source, "axes", f"no {name} axis, and the scenario's default state "
-                                  f"cannot fix it: {default_problem}; give every axis of the kind")
-            value = float(default_raw[i])
-            axes.append(Axis(name, value, value, 1))
-        self.axes: tuple[Axis, ...] = tuple(axes)
+        self.axes: tuple[Axis, ...] = self._all_axes(default_raw, default_problem)
         self._values = [ax.values() for ax in self.axes]
         self._shape = tuple(ax.count for ax in self.axes)
         self._n_points = math.prod(self._shape)
         self.default_coordinates: Array | None = None
         if default_raw is not None:
             self.default_coordinates = self._canonical(default_raw)
+
+    def _all_axes(self, default_raw: Array | None, default_problem: str) -> tuple[Axis, ...]:
+        """Every axis of the kind, in canonical order: the config's, or fixed at the default state's coordinate."""
+        given = {ax.name: ax for ax in self.config.axes}
+        axes = []
+        for i, name in enumerate(AXIS_NAMES[self.kind]):
+            if name in given:
+                axes.append(given[name])
+                continue
+            if default_raw is None:
+                raise ConfigError(self.config.source, "axes", f"no {name} axis, and the scenario's default state "
+                                  f"cannot fix it: {default_problem}; give every axis of the kind")
+            value = float(default_raw[i])
+            axes.append(Axis(name, value, value, 1))
+        return tuple(axes)
 
     # ---- shape and indices ------------------------------------------------------------------------
 
@@ -349,6 +345,17 @@ class Grid:
                     order.append((nb, p))
                     queue.append(nb)
         return order
+
+
+def _major_axis(inertia_body_kg_m2: Array, source: str) -> Array:
+    """The unit major principal axis ``(3,)`` of a symmetric inertia [kg·m²], its largest component positive."""
+    eig, vecs = np.linalg.eigh(inertia_body_kg_m2)
+    if eig[2] - eig[1] <= 1e-9 * abs(eig[2]):
+        raise ConfigError(source, "kind", "a flat-spin grid needs a unique major axis, but the "
+                          f"target's two largest principal moments are equal ({eig[1]:g}, {eig[2]:g})")
+    e = vecs[:, 2]
+    e = e if e[int(np.argmax(np.abs(e)))] > 0 else -e
+    return e / np.linalg.norm(e)
 
 
 def _minimal_rotation(a: Array, b: Array) -> Array:
