@@ -23,6 +23,7 @@ from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import ScanOnDemand
 from planner.phases.approach_solve import solve_approach
 from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
+from planner.phases.stabilization_solve import solve_stabilization
 from planner.phases.tracking import TrackingResult
 from planner.plan_parameters import ApproachParameters, PlanParameters
 from planner.plan_samples import PhaseSamples
@@ -91,7 +92,7 @@ class GraspCandidate:
 
     def stabilize(self, warm_params: Array | None, max_iterations: int | None) -> StabilizationSolution:
         """The stabilization from this grasp, within ``max_iterations`` (None: the scenario's limit only)."""
-        return self.problem.solve(self.grasp, warm_params, max_iterations)
+        return solve_stabilization(self.problem, self.grasp, warm_params, max_iterations)
 
 
 def accumulated(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:

@@ -7,6 +7,7 @@ scenario II state is in ``test_plan_scenarios.py`` (slow).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,8 +38,8 @@ def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: in
             problems.append(self.problem)
         ok = self.app.start_guess >= succeed_from_guess
         status = "stand-in ok" if ok else "stand-in failed"
-        return StabilizationSolution(self.problem.initial_params(self.grasp), ok, status, 1, 0.0, 0.0, 0.0,
-                                     float("nan"), float("nan"))
+        return replace(StabilizationSolution.given(self.problem.initial_params(self.grasp)), success=ok, status=status,
+                       iterations=1)
 
     return stabilize
 

@@ -1,4 +1,4 @@
-"""The stabilization NLP (phase 3): its constraint Jacobian, and the cold solve by way of the coarse NLP.
+"""The stabilization NLP (phase 3) and its solve: the constraint Jacobian, and the cold solve by way of the coarse NLP.
 
 The grasp state is scenario II's grasp taken from the bundled plan (tests/data/plan_II.json.gz): joint
 state and base pose at the tracking end, grasp frame from the export, and the compound momentum formed
@@ -18,12 +18,14 @@ from planner.config.scenario import load_scenario
 from planner.model.compound import compound_robot
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.rotation import quat_to_matrix
+from planner.phases import stabilization_solve
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
     StabilizationSolution,
     grasp_momentum_world,
 )
+from planner.phases.stabilization_solve import solve_stabilization
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -101,16 +103,16 @@ def test_cold_solve_falls_back_to_the_full_nlp_when_the_warm_solve_fails(problem
     calls = []
     template = StabilizationSolution(np.zeros(problem.n_params), True, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
-    def fake_solve(self, g, warm_params, max_iterations=None):
+    def fake_solve(nlp, g, warm_params, max_iterations=None):
         assert max_iterations is None  # no budget asked, none passed on
-        calls.append((self is problem, None if warm_params is None else np.asarray(warm_params).copy()))
+        calls.append((nlp is problem, None if warm_params is None else np.asarray(warm_params).copy()))
         n = len(calls)
         sol = replace(template, params=np.full(problem.n_params, float(n)), iterations=10 * n,
                       solve_time_s=float(n), success=n != 2, status=f"solve {n}")
         return sol
 
-    monkeypatch.setattr(StabilizationProblem, "_solve", fake_solve)
-    sol = problem.solve(grasp)
+    monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    sol = solve_stabilization(problem, grasp)
     assert [is_full for is_full, _ in calls] == [False, True, True]
     assert calls[0][1] is None and calls[2][1] is None
     np.testing.assert_array_equal(calls[1][1], np.full(problem.n_params, 1.0))  # started from the coarse answer
@@ -125,13 +127,13 @@ def test_an_iteration_budget_is_shared_by_the_coarse_and_full_solves(problem, gr
     calls = []
     template = StabilizationSolution(np.zeros(problem.n_params), False, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
-    def fake_solve(self, g, warm_params, max_iterations=None):
+    def fake_solve(nlp, g, warm_params, max_iterations=None):
         calls.append(max_iterations)
         return replace(template, iterations=min(70, max_iterations), status="Iteration_Budget_Exhausted"
                        if max_iterations <= 70 else "Infeasible_Problem_Detected")
 
-    monkeypatch.setattr(StabilizationProblem, "_solve", fake_solve)
-    sol = problem.solve(grasp, max_iterations=120)
+    monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    sol = solve_stabilization(problem, grasp, max_iterations=120)
     assert calls == [120, 50]  # coarse: 70 of 120; full from the coarse answer: the 50 left; then nothing
     assert sol.iterations == 120 and not sol.success and sol.status == "Iteration_Budget_Exhausted"
 
@@ -139,17 +141,17 @@ def test_an_iteration_budget_is_shared_by_the_coarse_and_full_solves(problem, gr
 def test_warm_solve_skips_the_coarse_problem(problem, grasp, monkeypatch):
     calls = []
 
-    def fake_solve(self, g, warm_params, max_iterations=None):
-        calls.append((self is problem, max_iterations))
+    def fake_solve(nlp, g, warm_params, max_iterations=None):
+        calls.append((nlp is problem, max_iterations))
         return "answer"
 
-    monkeypatch.setattr(StabilizationProblem, "_solve", fake_solve)
-    assert problem.solve(grasp, problem.initial_params(grasp), max_iterations=30) == "answer"
+    monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    assert solve_stabilization(problem, grasp, problem.initial_params(grasp), max_iterations=30) == "answer"
     assert calls == [(True, 30)]
 
 
 def test_a_real_solve_stops_at_its_iteration_budget(problem, grasp):
     """The wiring to IPOPT: from the cold guess (far outside the torque limit, so not feasible within 3
     iterations) a budget of 3 ends the solve after exactly 3 iterations, unsuccessful, named as such."""
-    sol = problem._solve(grasp, None, 3)
+    sol = stabilization_solve.solve_once(problem, grasp, None, 3)
     assert sol.iterations == 3 and not sol.success and sol.status == "Iteration_Budget_Exhausted"

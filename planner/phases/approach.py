@@ -141,8 +141,8 @@ class ApproachProblem:
         """Every constraint family into :attr:`constraints`, in order; ``(cost, extra decision variables)``."""
         n, d, par = self.robot.n_joints, self.decision, self.parameter_layout
         base_offset = w[d.slice("base_offset_m")]
-        Q_tr = [w[d.slice("tracking_nodes").start + j * n: d.slice("tracking_nodes").start + (j + 1) * n]
-                for j in range(len(TRACKING_NODES))]
+        nodes = d.slice("tracking_nodes").start
+        Q_tr = [w[nodes + j * n: nodes + (j + 1) * n] for j in range(len(TRACKING_NODES))]
         chaser = chaser_path(self.scenario, self.ff, self.spline, self.m_steps, w[d.slice("spline_params")],
                              base_offset, Q_tr, self.tracking_times_s)
         target = target_path(self.scenario, p[par.slice("attitude_wxyz")], p[par.slice("omega_body_rad_s")],

@@ -15,11 +15,7 @@ constraint (:mod:`planner.nlp.feasibility_stop`). See docs/phases.md, Stabilizat
 The NLP is built once per scenario: where the target was grasped (the compound's last-link inertia, the
 wrench's lever arms) enters as parameters (:mod:`planner.model.compound`), so every grasp, at any free-axis
 angle, reuses it. It is an MX graph over small SX Functions.
-
-A cold solve goes coarse to fine: the same NLP on ``coarse_via_points`` via points first (a third of the
-cost per iteration), then the full NLP from that answer: a thin feasible set (a tight torque limit) that
-IPOPT's limited-memory iterations approach slowly from the heuristic start is approached in a fraction of
-the iterations from the coarse answer.
+Solving it (coarse to fine) is :func:`planner.phases.stabilization_solve.solve_stabilization`.
 """
 
 from __future__ import annotations
@@ -128,7 +124,7 @@ class _AtViaPoints:
 
 
 class StabilizationProblem:
-    """The stabilization NLP of a scenario; solve() takes the grasp state and its geometry as parameters.
+    """The stabilization NLP of a scenario; a solve takes the grasp state and its geometry as parameters.
 
     Decision variables: the Eq. 24 parameters (and, with a peak-wrench cost, a torque slack). Parameters
     (:attr:`parameter_layout`): the grasp state, the compound's momentum and the grasp geometry. Constraints
@@ -269,34 +265,6 @@ class StabilizationProblem:
         P, *_ = np.linalg.lstsq(W @ G, q_path - W @ offset, rcond=None)
         return P.reshape(-1)
 
-    def solve(self, grasp: GraspState, warm_params: Array | None = None,
-              max_iterations: int | None = None) -> StabilizationSolution:
-        """Solve for ``grasp``, from ``warm_params`` or, cold, by way of the coarse problem.
-
-        A cold start first solves the coarse NLP (``coarse_via_points`` via points; per iteration about a
-        third of the cost) from :meth:`initial_params` and starts the full NLP from its answer, which sits
-        near the full NLP's feasible set; should that solve fail, the full NLP is solved from
-        :meth:`initial_params` as well, so a cold solve never does worse than the full NLP alone. The
-        returned times and iteration counts cover every solve made. ``max_iterations`` (None: only the
-        scenario's per-NLP ``max_iter``) bounds the IPOPT iterations of all those solves together; a solve
-        that spends it ends unsuccessful with status ``Iteration_Budget_Exhausted``.
-        """
-        if warm_params is not None or self.coarse_via_points == 0:
-            return self._solve(grasp, warm_params, max_iterations)
-        coarse = self.coarse_problem()
-        attempts = [coarse._solve(grasp, None, max_iterations)]
-        for start in (attempts[0].params, None):
-            left = None if max_iterations is None else max_iterations - sum(a.iterations for a in attempts)
-            if left is not None and left <= 0:
-                break
-            attempts.append(self._solve(grasp, start, left))
-            if attempts[-1].success:
-                break
-        last = attempts[-1]
-        return replace(last, iterations=sum(a.iterations for a in attempts),
-                       solve_time_s=sum(a.solve_time_s for a in attempts),
-                       build_time_s=self.build_time_s + coarse.build_time_s)
-
     def coarse_problem(self) -> StabilizationProblem:
         """The same NLP with ``coarse_via_points`` uniform via points and RK4 steps (built on first use)."""
         if self._coarse is None:
@@ -311,26 +279,3 @@ class StabilizationProblem:
         return self.parameter_layout.pack({"q": grasp.q, "qd": grasp.qd, "qdd": grasp.qdd, "x_base": grasp.x_base,
                                            "h_world": grasp.h_world,
                                            "geometry": grasp_geometry(self.scenario, grasp.T_ee_target)})
-
-    def _solve(self, grasp: GraspState, warm_params: Array | None,
-               max_iterations: int | None = None) -> StabilizationSolution:
-        par = self.parameters(grasp)
-        w0 = self.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
-        if self.n_extra:
-            M0, _, _ = self.outputs(w0, par)
-            w0 = np.concatenate([w0, [float(np.abs(np.asarray(M0)).max())]])
-        self.stop.arm(self.lbg, self.ubg, self.feasibility_only, max_iterations)
-        t0 = time.perf_counter()
-        sol = self.solver(x0=w0, p=par, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=self.ubg)
-        elapsed = time.perf_counter() - t0
-        stats = self.solver.stats()
-        P = np.asarray(sol["x"]).ravel()[: self.n_params]
-        M, _, d = (np.asarray(a).ravel() for a in self.outputs(P, par))
-        success, status = bool(stats["success"]), SolveOutcome.from_ipopt(str(stats["return_status"]))
-        if self.stop.stopped:
-            success, status = True, SolveOutcome.FEASIBLE_POINT_FOUND
-        elif self.stop.budget_exhausted:
-            success, status = False, SolveOutcome.ITERATION_BUDGET_EXHAUSTED
-        return StabilizationSolution(P, success, status, int(stats["iter_count"]),
-                                     elapsed, self.build_time_s, float(sol["f"]), float(np.abs(M).max()),
-                                     float(d.min()))
