@@ -72,7 +72,7 @@ class UniformCubicBSpline:
 
     Attributes:
         n_vertices: number of vertices ``N`` (≥ 8; see module docstring).
-        duration_s: phase duration ``t_f`` (s), > 0.
+        duration_s: phase duration ``t_f`` [s], > 0.
     """
 
     n_vertices: int
@@ -97,7 +97,7 @@ class UniformCubicBSpline:
 
     @property
     def segment_duration_s(self) -> float:
-        """Segment (knot-interval) duration ``t_seg = t_f / (N - 3)`` (s)."""
+        """Segment (knot-interval) duration ``t_seg = t_f / (N - 3)`` [s]."""
         return self.duration_s / self.n_segments
 
     @property
@@ -117,7 +117,7 @@ class UniformCubicBSpline:
         Args:
             segment: 0-based segment index, ``0 <= segment < N - 3`` (the paper's ``i - 1``).
             u: local times in ``[0, 1]`` (dimensionless; ``u = 1`` is the segment's right end).
-            derivative: 0 position (rad), 1 velocity (rad/s), 2 acceleration (rad/s²), 3 jerk (rad/s³).
+            derivative: 0 position [rad], 1 velocity [rad/s], 2 acceleration [rad/s²], 3 jerk [rad/s³].
         """
         if not 0 <= segment < self.n_segments:
             raise ValueError(f"segment: must be in [0, {self.n_segments}), got {segment}")
@@ -129,7 +129,7 @@ class UniformCubicBSpline:
         """Weight matrix ``W`` (``(n_times, N)``) with ``s^(d)(t) = W @ B`` (Eq. 22).
 
         Args:
-            times_s: times in ``[0, t_f]`` (s); ``t == t_f`` is evaluated on the last segment at ``u = 1``.
+            times_s: times in ``[0, t_f]`` [s]; ``t == t_f`` is evaluated on the last segment at ``u = 1``.
                 Knots ``t = k t_seg`` (0 < k < N - 3) are evaluated on the right segment at ``u = 0``.
             derivative: 0..3, see :meth:`segment_weights`; units rad/s^d per rad of vertex.
         """
@@ -207,10 +207,10 @@ class UniformCubicBSpline:
         """Vertices ``(N, n)`` from boundary values and interior vertices (inverse of Eq. 22 at both ends).
 
         Args:
-            start: ``(4, n)`` rows position (rad), velocity (rad/s), acceleration (rad/s²), jerk (rad/s³)
+            start: ``(4, n)`` rows position [rad], velocity [rad/s], acceleration [rad/s²], jerk [rad/s³]
                 at ``t = 0``.
             end: ``(4, n)``, same rows at ``t = t_f``.
-            interior: ``(N - 8, n)`` vertices ``B_5..B_{N-4}`` (rad).
+            interior: ``(N - 8, n)`` vertices ``B_5..B_{N-4}`` [rad].
         Returns numpy if all inputs are numpy, else casadi (``DM`` inputs mixed with ``SX``/``MX`` are fine).
         """
         if any(is_casadi(x) for x in (start, end, interior)):

@@ -72,7 +72,7 @@ def approach_vertices(spline: UniformCubicBSpline, theta_in: Matrix, params: Mat
 
     Args:
         spline: the phase's spline.
-        theta_in: initial joint positions ``(n,)`` (rad), numpy or casadi.
+        theta_in: initial joint positions ``(n,)`` [rad], numpy or casadi.
         params: flat vector of length ``n * (N - 5)`` in the module's row-major layout, numpy or casadi.
     Returns numpy if all inputs are numpy, else casadi.
     """
@@ -95,9 +95,9 @@ def stabilization_vertices(
 
     Args:
         spline: the phase's spline.
-        theta_in: initial joint positions ``(n,)`` (rad).
-        theta_dot_in: initial joint velocities ``(n,)`` (rad/s).
-        acc_in: initial joint accelerations ``(n,)`` (rad/s²); ``None`` means zero (the paper's choice).
+        theta_in: initial joint positions ``(n,)`` [rad].
+        theta_dot_in: initial joint velocities ``(n,)`` [rad/s].
+        acc_in: initial joint accelerations ``(n,)`` [rad/s²]; ``None`` means zero (the paper's choice).
         params: flat vector of length ``n * (N - 5)`` (module layout).
     Any of these may be casadi; then the result is casadi.
     """
@@ -138,9 +138,9 @@ def fit_approach_params(
 
     Args:
         spline: the phase's spline.
-        theta_in: initial joint positions ``(n,)`` (rad); imposed exactly, not fitted.
-        times_s: sample times ``(n_times,)`` in ``[0, t_f]`` (s).
-        q_samples: joint positions ``(n_times, n)`` (rad).
+        theta_in: initial joint positions ``(n,)`` [rad]; imposed exactly, not fitted.
+        times_s: sample times ``(n_times,)`` in ``[0, t_f]`` [s].
+        q_samples: joint positions ``(n_times, n)`` [rad].
     Returns the flat params (module layout).  With fewer than ``N - 5`` informative samples the problem is
     under-determined and the minimum-norm solution is returned.
     """

@@ -124,7 +124,7 @@ class PoseIK:
 
     def out_of_reach(self, p_goal: Array, base_fixed: Array | None, drift: tuple[Array, Array]) -> bool:
         """True when no configuration within the bounds puts the end-effector within REACH_TOLERANCE of
-        ``p_goal`` (m): the goal is farther than the arm's reach from every admissible first-joint origin.
+        ``p_goal`` [m]: the goal is farther than the arm's reach from every admissible first-joint origin.
 
         Most unreachable meeting times of a scan fail this way; the least-squares solves would spend
         ~200 evaluations from each of several starts to find the same answer.

@@ -87,12 +87,12 @@ class StabilizationSolution:
 
 
 def stabilization_spline(scenario: Scenario) -> UniformCubicBSpline:
-    """The joint B-spline of Eq. 24 over t_f³ (s) with the scenario's number of vertices."""
+    """The joint B-spline of Eq. 24 over t_f³ [s] with the scenario's number of vertices."""
     return UniformCubicBSpline(scenario.stabilization.n_vertices, scenario.phases.stabilization_s)
 
 
 def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float64]:
-    """``count`` uniform via points in (0, t_f³] plus every interior knot of the spline (s).
+    """``count`` uniform via points in (0, t_f³] plus every interior knot of the spline [s].
 
     Within a segment the joint accelerations are linear, so the wrench is smooth; at a knot the jerk
     jumps and the wrench's slope kinks, which is where it peaks between uniform via points. Putting a

@@ -57,7 +57,7 @@ def grasp_momentum_world(chaser: FreeFloatingModel, compound: FreeFloatingModel,
 def wrench_function(robot: RobotModel) -> ca.Function:
     """``(x_base, q, qd, qdd, h_world, geometry) -> (F_grasp, M_grasp, ω_base, R_ee, p_ee)``, all SX-exact.
 
-    F, M: force (N) and moment about the grasp point (N·m) the gripper exerts on the target, in the
+    F, M: force [N] and moment about the grasp point [N·m] the gripper exerts on the target, in the
     grasp frame; ω_base: chaser base angular velocity (rad/s, base frame); R_ee, p_ee: gripper pose in the
     world. ``geometry``: the grasp geometry (:mod:`planner.model.compound`), so the Function depends on the
     chaser ``robot`` alone.
