@@ -18,7 +18,7 @@ os.environ.setdefault("LUTGEN_CACHE_DIR", str(ROOT / ".lutgen-cache"))
 
 @pytest.fixture(scope="session")
 def robot():
-    from planner.model.robot import load_robot
+    from planner.model.urdf import load_robot
 
     return load_robot(CONFIGS / "robots" / "chaser7.urdf")
 

@@ -63,7 +63,7 @@ def test_a_missing_field_names_it(tmp_path: Path) -> None:
 
 
 def test_a_robot_that_is_not_a_chain_is_a_robot_model_error(tmp_path: Path) -> None:
-    from planner.model.robot import load_robot
+    from planner.model.urdf import load_robot
 
     root = _copy_configs(tmp_path)
     with pytest.raises(RobotModelError) as info:

@@ -18,8 +18,9 @@ import pinocchio as pin
 import pytest
 
 from planner.config.scenario import load_scenario
-from planner.model.robot import load_robot, pin_configuration
+from planner.model.robot import pin_configuration
 from planner.model.rotation import quat_to_matrix
+from planner.model.urdf import load_robot
 from planner.plan import Planner
 from planner.verify.verifier import verify
 

@@ -127,7 +127,7 @@ def _joint_limits(doc: dict[str, Any]) -> tuple[tuple[Array, Array, Array] | Non
     path = resolve_robot_urdf(doc)
     if path is None:
         return None, f"robot URDF {doc.get('robot_urdf')!r} not found: no limit lines"
-    from planner.model.robot import load_robot  # pinocchio: only when a URDF is there to read
+    from planner.model.urdf import load_robot  # pinocchio: only when a URDF is there to read
 
     try:
         robot = load_robot(path, ee_frame=doc.get("ee_frame", "grasp_frame"))

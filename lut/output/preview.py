@@ -78,7 +78,7 @@ def _round(a: Array) -> list:
 def _load_robot(doc: dict[str, Any]) -> RobotModel:
     """The chaser the plan names (its URDF gives the arm's shapes); :class:`PlanFileError` if it is not there."""
     from planner.errors import LutgenError
-    from planner.model.robot import load_robot
+    from planner.model.urdf import load_robot
 
     urdf = resolve_robot_urdf(doc)
     if urdf is None:

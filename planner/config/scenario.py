@@ -29,7 +29,8 @@ from planner.config.settings import (
 from planner.config.target import TargetConfig, load_target
 from planner.config.toml_table import TomlTable, read_toml
 from planner.errors import ConfigError
-from planner.model.robot import RobotModel, load_robot
+from planner.model.robot import RobotModel
+from planner.model.urdf import load_robot
 
 Array = NDArray[np.float64]
 
