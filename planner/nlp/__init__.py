@@ -1,4 +1,5 @@
 """NLP plumbing shared by the phases.
 
-B-splines, costs, compiled CasADi Functions, IPOPT set-up, named decision/constraint layouts.
+B-splines and the phases' parameter layouts, costs, compiled CasADi Functions, IPOPT set-up, the feasibility
+stop and constraint back-offs, named vector layouts (``w``, ``p``, ``g``) and solve outcomes.
 """

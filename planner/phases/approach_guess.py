@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.collision.nlp_scene import build_scene, world_poses
+from planner.collision.scene_distances import CollisionScene
 from planner.config.scenario import Scenario
 from planner.model.robot import fk_function
 from planner.model.rotation import axis_angle_to_matrix
@@ -105,7 +106,7 @@ class _Scan:
     sc: Scenario
     motion: TargetMotion
     fk: ca.Function
-    scene: object
+    scene: CollisionScene
     ik: PoseIK
     S_pre: Array
     x_home: Array
