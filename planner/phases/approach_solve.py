@@ -43,15 +43,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     (IPOPT calls back once per iteration, and once more in a cold start's restoration phase).
     """
     t0 = time.perf_counter()
-    result, iterations = None, 0
-    if warm_start is None and problem.scenario.costs.approach_energy > 0 and skip_guesses == 0:
-        # Eq. 16 is smallest at the base-offset guess, but free-base starts lead IPOPT into local minima where
-        # the stopping room and the tracking rates hold the base away: solve with the base pinned first; if
-        # that succeeds, the free solve starts at its optimum
-        warm_start = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale)
-        iterations += warm_start.iterations
-        if not warm_start.success:
-            result, warm_start = warm_start, None
+    warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, max_starts, tracking_speed_scale,
+                                                        skip_guesses)
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     starts = [] if warm_start is None else [decision_vector(warm_start)]
@@ -75,6 +68,23 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         return _no_start(problem, SolveOutcome.NO_GUESS_LEFT, problem.scenario.base_offset_guess_m,
                          time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _base_pinned_first(problem: ApproachProblem, state: TargetState,
+                       warm_start: ApproachParameters | ApproachSolution | None, max_starts: int,
+                       tracking_speed_scale: float, skip_guesses: int,
+                       ) -> tuple[ApproachParameters | ApproachSolution | None, ApproachSolution | None, int]:
+    """``(warm start, failed result, iterations)`` after the base-pinned solve a cold first solve with the
+    approach-energy cost makes first (no solve otherwise).
+
+    Eq. 16 is smallest at the base-offset guess, but free-base starts lead IPOPT into local minima where the
+    stopping room and the tracking rates hold the base away: solve with the base pinned first; if that
+    succeeds, the free solve starts at its optimum.
+    """
+    if warm_start is not None or not problem.scenario.costs.approach_energy > 0 or skip_guesses != 0:
+        return warm_start, None, 0
+    pinned = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale)
+    return (pinned, None, pinned.iterations) if pinned.success else (None, pinned, pinned.iterations)
 
 
 def _no_start(problem: ApproachProblem, status: SolveOutcome, base_offset_m: tuple[float, float],
