@@ -117,8 +117,8 @@ class ApproachProblem:
         self._nlp = {"x": ca.vertcat(w, *extra_w), "p": p, "f": cost, "g": self.constraints.expression()}
         # an optional iteration budget per solve (the planner gives its retries from later guesses one); the
         # callback only counts, it never changes an iterate
-        self.budget = FeasibilityStop("approach_budget", self.n_w + self.n_extra, len(self.lbg), 7, slice(0, 0), 0.0,
-                                      0.0)
+        self.budget = FeasibilityStop("approach_budget", self.n_w + self.n_extra, len(self.lbg),
+                                      self.parameter_layout.size, slice(0, 0), 0.0, 0.0)
         self._options = ipopt_options(sc.solver) | {"iteration_callback": self.budget}
         self.solver = ipopt_solver("approach", self._nlp, self._options)
         self._cold_solver: ca.Function | None = None
