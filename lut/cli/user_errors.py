@@ -35,7 +35,6 @@ def user_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
-
 def write_error(target: str, exc: OSError) -> LutgenError:
     """A one-line user error for an output path that cannot be written (read-only, a file for a folder, …)."""
     where = f": {exc.filename}" if exc.filename and str(exc.filename) != str(target) else ""

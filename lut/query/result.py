@@ -5,10 +5,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
-from planner.plan import GraspPlan
 from planner.plan_parameters import PlanParameters
-from planner.verify.verifier import VerifyReport
+
+if TYPE_CHECKING:
+    from planner.plan import GraspPlan
+    from planner.verify.verifier import VerifyReport
 
 
 class QuerySource(StrEnum):

@@ -8,12 +8,15 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from lut.solve.point_worker import WARM_PREFIX, load_npz, save_npz
 from lut.table.point_result import PointResult
 from lut.table.records import failed_result, from_record, parameter_fields
-from planner.model.target import TargetState
 from planner.plan_parameters import PlanParameters
+
+if TYPE_CHECKING:
+    from planner.model.target import TargetState
 
 DEFAULT_SOLVER = "lut.solve.point_worker:solve_point"  # module:function the child runs
 

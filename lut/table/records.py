@@ -8,14 +8,16 @@ No pickles anywhere.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from lut.table.point_result import PointResult, PointStatus
-from planner.plan import GraspPlan
 from planner.plan_parameters import ApproachParameters, PlanParameters
-from planner.verify.verifier import VerifyReport
+
+if TYPE_CHECKING:  # a record is read and written far from the planner (journal, table, a point's .npz)
+    from planner.plan import GraspPlan
+    from planner.verify.verifier import VerifyReport
 
 Record = dict[str, Any]
 
