@@ -21,14 +21,6 @@ class PointStatus(StrEnum):
         """The status code the HDF5 table stores (``points/status``, int8)."""
         return STATUS_CODES[self.value]
 
-    @classmethod
-    def of_code(cls, code: int) -> PointStatus:
-        """The status stored as ``code`` (``ValueError`` for an unknown code)."""
-        for status in cls:
-            if STATUS_CODES[status.value] == code:
-                return status
-        raise ValueError(f"unknown point status code {code!r}")
-
 
 # the table's codes, by name (stored with the table as JSON, so the names are plain str)
 STATUS_CODES: dict[str, int] = {"pending": 0, "feasible": 1, "infeasible": 2, "failed": 3}
@@ -53,7 +45,3 @@ class PointResult:
     free_axis_angle_rad: float | None = None  # the tracking's free rotation about the grasp axis [rad]
     costs: dict[str, float] = field(default_factory=dict)
     margins: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def feasible(self) -> bool:
-        return self.status is PointStatus.FEASIBLE
