@@ -156,19 +156,7 @@ def joints_figure(doc: dict[str, Any]) -> tuple[Figure, str]:
         ax_q.plot(t, q[:, j], color="tab:blue")
         ax_v.plot(t, qd[:, j], color="tab:purple")
         if limits is not None:
-            q_min, q_max, qd_max = (np.degrees(v[j]) for v in limits)
-            ax_q.axhline(q_min, **LIMIT_STYLE)
-            ax_q.axhline(q_max, **LIMIT_STYLE)
-            ax_v.axhline(qd_max, **LIMIT_STYLE)
-            ax_v.axhline(-qd_max, **LIMIT_STYLE)
-            margin_q = min(q[:, j].min() - q_min, q_max - q[:, j].max())
-            margin_v = qd_max - np.abs(qd[:, j]).max()
-            # red where the motion uses more than 95 % of the room the limits give
-            for ax, text, tight in ((ax_q, f"margin {margin_q:.3g}°", margin_q < 0.05 * (q_max - q_min)),
-                                    (ax_v, f"margin {margin_v:.3g}°/s", margin_v < 0.05 * 2 * qd_max)):
-                ax.text(0.995, 0.93, text, transform=ax.transAxes, ha="right", va="top", fontsize=7,
-                        color="tab:red" if tight else "black",
-                        bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1})
+            _joint_limit_lines(ax_q, ax_v, q[:, j], qd[:, j], *(np.degrees(v[j]) for v in limits))
         ax_q.set_ylabel(f"q{j + 1} [deg]")
         ax_v.set_ylabel(f"q̇{j + 1} [deg/s]")
         for ax in (ax_q, ax_v):
@@ -180,6 +168,23 @@ def joints_figure(doc: dict[str, Any]) -> tuple[Figure, str]:
         axes_v[-1].plot([], [], **LIMIT_STYLE, label="URDF limit")
         axes_v[-1].legend(loc="lower left", fontsize=7)
     return fig, _title("joints", doc, note)
+
+
+def _joint_limit_lines(ax_q: Axes, ax_v: Axes, q: Array, qd: Array, q_min: float, q_max: float,
+                       qd_max: float) -> None:
+    """One joint's URDF limits as dashed lines and its margins written in (angles [deg], rates [deg/s])."""
+    ax_q.axhline(q_min, **LIMIT_STYLE)
+    ax_q.axhline(q_max, **LIMIT_STYLE)
+    ax_v.axhline(qd_max, **LIMIT_STYLE)
+    ax_v.axhline(-qd_max, **LIMIT_STYLE)
+    margin_q = min(q.min() - q_min, q_max - q.max())
+    margin_v = qd_max - np.abs(qd).max()
+    # red where the motion uses more than 95 % of the room the limits give
+    for ax, text, tight in ((ax_q, f"margin {margin_q:.3g}°", margin_q < 0.05 * (q_max - q_min)),
+                            (ax_v, f"margin {margin_v:.3g}°/s", margin_v < 0.05 * 2 * qd_max)):
+        ax.text(0.995, 0.93, text, transform=ax.transAxes, ha="right", va="top", fontsize=7,
+                color="tab:red" if tight else "black",
+                bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1})
 
 
 def collision_distance_figure(doc: dict[str, Any]) -> tuple[Figure, str]:

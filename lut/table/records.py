@@ -72,7 +72,8 @@ def from_record(rec: Record) -> PointResult:
     """The typed form of a flat record (of a journal, a point's .npz, or :meth:`lut.table.store.Table.record`).
 
     A table holds every field at every point (the missing value where a point has none, docs/table.md), so
-    a table record of a failed point carries NaN parameters; only feasible points' are ever read.
+    a table record of a failed point carries NaN parameters; only feasible points' are ever read. Keys
+    outside the record schema (:func:`to_record`) are not carried.
     """
     free = rec.get("free_axis_angle_rad")
     return PointResult(point=int(rec["point"]), status=PointStatus(rec["status"]),
