@@ -5,8 +5,9 @@
 The states (seeded): per scenario, flat spins with the spin axis anywhere in the orbital x–z plane (rate
 1–4 °/s, any phase) and general tumbles (±4 °/s per body axis, any attitude) through ``lutgen plan``; and
 flat spins inside the golden table's grid through ``lutgen query``. Every plan file is thinned to a 0.1 s
-step and gzipped; ``index.json`` lists each state, its command and exit code. ``tests/test_truth_plans.py``
-re-checks the stored plans' distances with verify's engine, independently of the plans' own metrics.
+step and gzipped; ``index.json`` lists each state, its command and exit code.
+``tests/planner/verify/test_truth_plans.py`` re-checks the stored plans' distances with verify's engine,
+independently of the plans' own metrics.
 """
 
 from __future__ import annotations

@@ -20,7 +20,8 @@ if TYPE_CHECKING:
     from planner.model.target import TargetState
 
 # lut.query.table_query starts no refine when less than MIN_REFINE_S is left after FINISH_RESERVE_S: a 1 s budget
-# measures the table alone (lookup, interpolation, re-simulation, verification), as tests/test_ci_table.py does
+# measures the table alone (lookup, interpolation, re-simulation, verification),
+# as tests/lut/query/test_ci_table.py does
 NO_REFINE_BUDGET_S = 1.0
 REFINE_KEYS = ("refine_s", "query_with_refine_total_s", "fraction_feasible_after_refine", "refined_queries",
                "queries_over_budget", "budget_s")

@@ -1,0 +1,158 @@
+"""The stabilization NLP (phase 3) and its solve: the constraint Jacobian, and the cold solve by way of the coarse NLP.
+
+The grasp state is scenario II's grasp taken from the bundled plan (tests/data/plan_II.json.gz): joint
+state and base pose at the tracking end, grasp frame from the export, and the compound momentum formed
+by the planner's own ``grasp_momentum_world``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lut.output.plan_file import load_plan
+from planner.config.scenario import load_scenario
+from planner.model.compound import compound_robot
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.rotation import quat_to_matrix
+from planner.phases import stabilization_solve
+from planner.phases.stabilization import (
+    GraspState,
+    StabilizationProblem,
+    StabilizationSolution,
+    grasp_momentum_world,
+)
+from planner.phases.stabilization_solve import solve_stabilization
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+@pytest.fixture(scope="module")
+def scenario_II():
+    return load_scenario(ROOT / "configs" / "scenarios" / "scenario_II.toml")
+
+
+@pytest.fixture(scope="module")
+def grasp(scenario_II) -> GraspState:
+    doc = load_plan(ROOT / "tests" / "data" / "plan_II.json.gz")
+    s = doc["samples"]
+    i = int(np.argmin(np.abs(np.asarray(s["t"]) - doc["phases"]["stabilization"][0])))
+    q, qd = np.asarray(s["q"][i]), np.asarray(s["qd"][i])
+    x_base = np.concatenate([s["base_position"][i], s["base_wxyz"][i]])
+    g = doc["target"]["grasp_in_body"]
+    T_body_grasp = np.eye(4)
+    T_body_grasp[:3, :3] = quat_to_matrix(np.asarray(g["wxyz"]))
+    T_body_grasp[:3, 3] = g["position"]
+    T_ee_target = np.linalg.inv(T_body_grasp)
+    h_world = grasp_momentum_world(FreeFloatingModel(scenario_II.robot),
+                                   FreeFloatingModel(compound_robot(scenario_II, T_ee_target)), q, qd, x_base)
+    return GraspState(q, qd, np.zeros(7), x_base, h_world, T_ee_target)
+
+
+@pytest.fixture(scope="module")
+def problem(scenario_II, grasp) -> StabilizationProblem:
+    return StabilizationProblem(scenario_II)
+
+
+def test_constraint_jacobian_matches_central_differences(problem, grasp):
+    """The NLP's Jacobian (CasADi AD, the grasp wrench by its own Jacobian; see JACOBIAN_FIRST_PENALTY)
+    equals finite differences of the constraints on the joint-box and grasp-wrench rows.
+
+    Fourth-order central differences, step 1e-5 in the spline parameters: the wrench is strongly curved
+    in them (second-order differences at this step are off by 1e-5 of an entry, their h² truncation),
+    while the fourth-order truncation (~h⁴) and roundoff (~1e-16·|g|/h) both stay below 1e-9 relative.
+    The distance rows are left to tests/planner/collision/test_collision_callback.py (FCL's witness points switch
+    faces).
+    """
+    par = problem.parameters(grasp)
+    P = problem.initial_params(grasp)
+    g_fun = problem.solver.get_function("nlp_g")
+    J = np.asarray(problem.solver.get_function("nlp_jac_g")(P, par)[1])
+    g_rows = problem.constraints
+    rows = np.r_[g_rows.slice("joint_positions"), g_rows.slice("joint_velocities"), g_rows.slice("grasp_torque"),
+                 g_rows.slice("grasp_force")]
+    assert g_rows.slice("grasp_force").stop == len(problem.lbg)  # every row but the distances
+    step = 1e-5
+
+    def g(x: np.ndarray) -> np.ndarray:
+        return np.asarray(g_fun(x, par)).ravel()[rows]
+
+    J_fd = np.empty((len(rows), len(P)))
+    for j in range(len(P)):
+        e = np.zeros(len(P))
+        e[j] = step
+        J_fd[:, j] = (-g(P + 2 * e) + 8 * g(P + e) - 8 * g(P - e) + g(P - 2 * e)) / (12 * step)
+    scale = np.maximum(np.abs(J_fd).max(axis=1, keepdims=True), 1e-3)
+    np.testing.assert_array_less(np.abs(J[rows] - J_fd) / scale, 1e-7)
+
+
+def test_coarse_problem_is_the_same_nlp_on_fewer_via_points(problem, scenario_II):
+    coarse = problem.coarse_problem()
+    assert coarse is problem.coarse_problem()  # built once
+    assert coarse.functions is problem.functions  # the robot's inner Functions are built and loaded once
+    assert coarse.coarse_via_points == 0  # no coarse problem of its own
+    assert coarse.n_params == problem.n_params
+    assert scenario_II.stabilization.coarse_via_points < coarse.k < problem.k  # knots are always via points
+
+
+def test_cold_solve_falls_back_to_the_full_nlp_when_the_warm_solve_fails(problem, grasp, monkeypatch):
+    """Coarse → full (from the coarse answer) → full from the cold guess, when the second fails; the
+    answer is the last solve's, with times and iterations summed over all three."""
+    calls = []
+    template = StabilizationSolution(np.zeros(problem.n_params), True, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def fake_solve(nlp, g, warm_params, max_iterations=None):
+        assert max_iterations is None  # no budget asked, none passed on
+        calls.append((nlp is problem, None if warm_params is None else np.asarray(warm_params).copy()))
+        n = len(calls)
+        sol = replace(template, params=np.full(problem.n_params, float(n)), iterations=10 * n,
+                      solve_time_s=float(n), success=n != 2, status=f"solve {n}")
+        return sol
+
+    monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    sol = solve_stabilization(problem, grasp)
+    assert [is_full for is_full, _ in calls] == [False, True, True]
+    assert calls[0][1] is None and calls[2][1] is None
+    np.testing.assert_array_equal(calls[1][1], np.full(problem.n_params, 1.0))  # started from the coarse answer
+    assert sol.status == "solve 3" and sol.success
+    assert sol.iterations == 60 and sol.solve_time_s == 6.0
+    assert sol.build_time_s == problem.build_time_s + problem.coarse_problem().build_time_s
+
+
+def test_an_iteration_budget_is_shared_by_the_coarse_and_full_solves(problem, grasp, monkeypatch):
+    """The budget bounds the iterations of all solves together: each gets what the earlier ones left, and
+    none starts once it is spent."""
+    calls = []
+    template = StabilizationSolution(np.zeros(problem.n_params), False, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def fake_solve(nlp, g, warm_params, max_iterations=None):
+        calls.append(max_iterations)
+        return replace(template, iterations=min(70, max_iterations), status="Iteration_Budget_Exhausted"
+                       if max_iterations <= 70 else "Infeasible_Problem_Detected")
+
+    monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    sol = solve_stabilization(problem, grasp, max_iterations=120)
+    assert calls == [120, 50]  # coarse: 70 of 120; full from the coarse answer: the 50 left; then nothing
+    assert sol.iterations == 120 and not sol.success and sol.status == "Iteration_Budget_Exhausted"
+
+
+def test_warm_solve_skips_the_coarse_problem(problem, grasp, monkeypatch):
+    calls = []
+
+    def fake_solve(nlp, g, warm_params, max_iterations=None):
+        calls.append((nlp is problem, max_iterations))
+        return "answer"
+
+    monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    assert solve_stabilization(problem, grasp, problem.initial_params(grasp), max_iterations=30) == "answer"
+    assert calls == [(True, 30)]
+
+
+def test_a_real_solve_stops_at_its_iteration_budget(problem, grasp):
+    """The wiring to IPOPT: from the cold guess (far outside the torque limit, so not feasible within 3
+    iterations) a budget of 3 ends the solve after exactly 3 iterations, unsuccessful, named as such."""
+    sol = stabilization_solve.solve_once(problem, grasp, None, 3)
+    assert sol.iterations == 3 and not sol.success and sol.status == "Iteration_Budget_Exhausted"

@@ -1,0 +1,103 @@
+"""A cold plan whose stabilization fails from its first grasp tries the grasps of the approach's next scanned
+guesses (``planner.plan_grasps``), with an iteration budget while another grasp remains, and falls back to the first
+grasp without the budget. The stabilization is replaced by a stand-in that fails or succeeds by the grasp it
+is given, so these tests check the control flow and the bookkeeping, in seconds; the real rescue of a
+scenario II state is in ``test_plan_scenarios.py`` (slow).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import planner.phases.approach_guess as approach_guess_module
+import planner.plan_grasps as plan_grasps_module
+from planner.config.scenario import load_scenario
+from planner.phases.stabilization import StabilizationSolution
+from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
+
+SCENARIO_II = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "scenario_II.toml"
+
+
+@pytest.fixture(scope="module")
+def planner_II():
+    sc = load_scenario(SCENARIO_II)
+    return sc, Planner(sc)
+
+
+def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: int, problems: list | None = None):
+    """A ``GraspCandidate.stabilize`` that records (start guess, budget, grasp time), and the NLP object used
+    in ``problems``, and succeeds only from grasps reached from scanned guess ``succeed_from_guess`` or later."""
+
+    def stabilize(self: GraspCandidate, warm_params, max_iterations):
+        calls.append((self.app.start_guess, max_iterations, self.grasp_time_s))
+        if problems is not None:
+            problems.append(self.problem)
+        ok = self.app.start_guess >= succeed_from_guess
+        status = "stand-in ok" if ok else "stand-in failed"
+        return replace(StabilizationSolution.given(self.problem.initial_params(self.grasp)), success=ok, status=status,
+                       iterations=1)
+
+    return stabilize
+
+
+def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypatch):
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
+    scans = []
+    reach_scan = approach_guess_module.reach_scan
+    monkeypatch.setattr(approach_guess_module, "reach_scan", lambda *a: scans.append(a) or reach_scan(*a))
+    solves = []  # (iteration budget, solution) of every approach solve
+    solve = plan_grasps_module.solve_approach
+    monkeypatch.setattr(plan_grasps_module, "solve_approach",
+                        lambda *a, **k: solves.append((k.get("max_iterations"), solve(*a, **k))) or solves[-1][1])
+    plan = planner.plan(sc.target_state.as_state())
+    # one scan: the reach check, the first approach and the retry from the same scan's next guess
+    assert len(scans) == 1
+    assert calls[0][:2] == (0, STABILIZATION_BUDGET)  # the first grasp, under the budget: another remains
+    assert len(calls) == 2 and calls[1][0] >= 1
+    # budgeted as well: the first grasp would remain to fall back to
+    assert calls[1][1] == STABILIZATION_BUDGET
+    assert abs(calls[1][2] - calls[0][2]) > 1.0  # another meeting time, not the same grasp again
+    assert plan.stabilization.status == "stand-in ok" and plan.approach.start_guess == calls[1][0]
+    assert plan.t_grasp == pytest.approx(calls[1][2])  # the plan is assembled from the grasp that succeeded
+    assert any("trying the approach's next guess" in note for note in plan.notes)
+    # the first approach is unbudgeted; the retry's gets a budget scaled from the first one's iterations
+    assert solves[0][0] is None and solves[1][0] == approach_retry_budget(solves[0][1].iterations)
+    # the scan is kept for one plan's retries only: planning the state again scans again, as a new state would
+    planner.plan(sc.target_state.as_state())
+    assert len(scans) == 2
+
+
+def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(planner_II, monkeypatch):
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    problems = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES, problems))
+    plan = planner.plan(sc.target_state.as_state())
+    # every grasp under the budget (scanned guesses in order), then the first again without it
+    assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
+    guesses = [c[0] for c in calls[:-1]]
+    assert guesses[0] == 0 and guesses == sorted(set(guesses)) and guesses[-1] <= GRASP_GUESSES - 1
+    assert calls[-1] == (0, None, calls[0][2])  # the first grasp, whole
+    assert problems[-1] is problems[0]  # its NLPs kept by the planner, not built again
+    assert plan.approach.start_guess == 0 and plan.t_grasp == pytest.approx(calls[0][2])
+    assert not plan.solver_ok and "solved again without it" in plan.notes[-1]
+
+
+def test_a_warm_plan_keeps_its_grasp(planner_II, monkeypatch):
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
+    cold = planner.plan(sc.target_state.as_state())
+    calls.clear()
+    warm = planner.plan(sc.target_state.as_state(), cold)
+    assert len(calls) == 1 and calls[0][1] is None  # no budget, no other grasp, whatever the outcome
+    # the same local solution: the warm approach re-converges (IPOPT's tolerance) next to the cold one, while
+    # the scanned guesses' meeting times lie several seconds apart
+    assert warm.t_grasp == pytest.approx(cold.t_grasp, abs=0.5)
+    np.testing.assert_allclose(warm.approach.base_offset_m, cold.approach.base_offset_m, atol=1e-2)
