@@ -156,6 +156,8 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     check_plan_outputs([table_path, tq.scenario_path, tq.scenario.robot.urdf_path, tq.scenario.target.source],
                        out_path, csv_path)
     result = tq.query(state, budget_s=budget_s, refine=refine)
+    for note in result.notes:
+        click.echo(f"note: {note}; planned and verified at the observed state")
     for line in plan_table(result.plan, result.report):
         click.echo(line)
     for line in summary_lines(result.report):

@@ -33,6 +33,7 @@ class TableAnswer:
     parameters: PlanParameters
     corners: list[int]  # the grid points used (flat indices)
     source: QuerySource
+    notes: tuple[str, ...] = ()  # how the state differs from where the table answered (off its family or grid)
 
 
 @dataclass
@@ -45,3 +46,4 @@ class QueryResult:
     corners_used: list[int]
     latency_s: dict[str, float] = field(default_factory=dict)  # by step, e.g. "verify_s" [s]
     refine_failure: str = ""
+    notes: tuple[str, ...] = ()  # how the state differs from where the table answered (off its family or grid)

@@ -1,6 +1,8 @@
 """``lutgen query``: observed target state → table lookup → interpolation → verify → refine (docs/table.md, Query).
 
-1. The state is mapped to grid coordinates (flat spin: rate, spin-axis angle, phase) and its cell.
+1. The state is mapped to grid coordinates (flat spin: rate, spin-axis angle, phase) and its cell; a state
+   off the grid's family (an estimator's flat spin is never exact) or beyond an axis' bounds is answered at
+   the nearest grid coordinates, and the result says so (:mod:`lut.table.grid_projection`).
 2. The feasible corners of the cell are interpolated — only mutually consistent ones
    (:mod:`lut.query.interpolation`). Without a feasible corner the nearest feasible point of the table is used.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
@@ -24,6 +26,7 @@ from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
 from lut.table.grid import Grid
 from lut.table.grid_config import load_grid_text
+from lut.table.grid_projection import project_to_grid
 from lut.table.model_identity import table_hash
 from lut.table.point_result import PointResult, PointStatus
 from lut.table.records import from_record
@@ -66,7 +69,8 @@ class TableQuery:
     def interpolate(self, state: TargetState) -> TableAnswer | None:
         """The table's parameters for ``state``: its cell's consistent feasible corners averaged, else the
         nearest feasible point's; ``None`` when the table has no feasible point."""
-        coords = self.grid.coordinates_of_state(state)
+        projection = project_to_grid(self.grid, state)
+        coords = projection.coords
         cell = self.grid.locate(coords)
         rate = float(np.linalg.norm(state.omega_body_rad_s))
         period = 2 * np.pi / rate if rate > 0 else PERIOD_FREE
@@ -80,13 +84,14 @@ class TableQuery:
             candidates.append(Candidate(corner, float(weight), carried))
         if candidates:
             group = consistent_group(candidates, period)
-            return TableAnswer(mean_of_group(group, period), [c.corner for c in group], QuerySource.INTERPOLATED)
+            return TableAnswer(mean_of_group(group, period), [c.corner for c in group], QuerySource.INTERPOLATED,
+                               projection.notes)
         if not self.feasible:
             return None
         nearest = min(self.feasible, key=lambda p: self.grid.normalised_distance(self.grid.coordinates(p), coords))
         stored = self.points[nearest].parameters
         carried = stored.with_start_delay(stored.approach.start_delay_s + self.phase_shift_s(nearest, coords))
-        return TableAnswer(carried, [nearest], QuerySource.NEAREST)
+        return TableAnswer(carried, [nearest], QuerySource.NEAREST, projection.notes)
 
     def phase_shift_s(self, point: int, coords: NDArray[np.float64]) -> float:
         """Start-delay shift [s] carrying grid point ``point``'s plan to ``coords`` (flat-spin symmetry)."""
@@ -132,7 +137,8 @@ class TableQuery:
             why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
             raise LutgenError(f"the table has no feasible point near this state and the solve gave no plan: {why}")
         latency["total_s"] = time.perf_counter() - t_start
-        return QueryResult(plan, report, source, found.corners if found is not None else [], latency, refine_failure)
+        return QueryResult(plan, report, source, found.corners if found is not None else [], latency, refine_failure,
+                           found.notes if found is not None else ())
 
     def _simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:

@@ -173,51 +173,40 @@ class Grid:
         """
         return self._canonical(self._raw_coordinates(state))
 
+    def family_coordinates(self, state: TargetState) -> Array:
+        """Coordinates of the member of the grid's state family nearest ``state`` (a flat-spin grid: rate |ω|,
+        the spin axis R·e projected on the orbital x–z plane), possibly outside the axes' bounds."""
+        return self._canonical(self._raw_coordinates(state, strict=False))
+
     def _flat_spin_rotation(self, alpha_rad: float, phi_rad: float) -> Array:
         s = np.array([math.cos(alpha_rad), 0.0, math.sin(alpha_rad)])
         R_align = axis_angle_to_matrix([0.0, 1.0, 0.0], -alpha_rad) @ self._R_ref
         return axis_angle_to_matrix(s, phi_rad) @ R_align
 
-    def _raw_coordinates(self, state: TargetState) -> Array:
-        q = np.asarray(state.attitude_wxyz, dtype=float)
-        omega = np.asarray(state.omega_body_rad_s, dtype=float)
-        if q.shape != (4,) or omega.shape != (3,):
-            raise TargetStateError(f"target state: expected a quaternion (4) and body rates (3), got shapes "
-                                   f"{q.shape}, {omega.shape}")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(omega))):
-            raise TargetStateError(f"target state must be finite, got attitude_wxyz {q.tolist()}, "
-                                   f"omega_body_rad_s {omega.tolist()}")
+    def _raw_coordinates(self, state: TargetState, strict: bool = True) -> Array:
+        """Coordinates of ``state`` before windowing. ``strict=False``: a flat-spin grid takes the nearest
+        member of its family (rate |ω|, spin axis R·e projected on the x–z plane) instead of refusing it;
+        a tumble at pitch ±90° takes roll 0."""
+        q, omega = _finite_state(state)
         R = quat_to_matrix(q)
         if self.kind == "tumble":
             pitch = math.asin(float(np.clip(-R[2, 0], -1.0, 1.0)))
             if math.cos(pitch) < 1e-9:
-                raise TargetStateError("target state: attitude at pitch ±90°, where roll and yaw are not defined")
+                if strict:
+                    raise TargetStateError("target state: attitude at pitch ±90°, where roll and yaw are not defined")
+                return np.degrees(np.concatenate([omega, [0.0, pitch, math.atan2(-R[0, 1], R[1, 1])]]))
             roll = math.atan2(R[2, 1], R[2, 2])
             yaw = math.atan2(R[1, 0], R[0, 0])
             return np.degrees(np.concatenate([omega, [roll, pitch, yaw]]))
-        e = self.major_axis_body
-        rate = float(np.linalg.norm(omega))
-        if rate == 0.0:
-            raise TargetStateError("not a flat spin: the target does not rotate (ω = 0); a flat-spin table "
-                                   "needs a spin rate > 0")
-        off = math.atan2(float(np.linalg.norm(np.cross(omega, e))), float(omega @ e))
-        if off > FLAT_SPIN_TOL_RAD:
-            why = ("it spins about -e, against the grid's convention ω_body = +rate·e" if off > math.pi / 2
-                   else f"ω_body is {off:.3g} rad away from it")
-            raise TargetStateError(f"not a flat spin about the major principal axis e = {np.round(e, 6).tolist()} "
-                                   f"(body frame): {why} (tolerance {FLAT_SPIN_TOL_RAD:g} rad)")
-        s = R @ e
-        tilt = math.asin(min(1.0, abs(float(s[1]))))
-        if tilt > FLAT_SPIN_TOL_RAD:
-            raise TargetStateError(f"flat spin with its spin axis {np.round(s, 6).tolist()} (world) {tilt:.3g} rad "
-                                   f"out of the orbital x–z plane (tolerance {FLAT_SPIN_TOL_RAD:g} rad); "
-                                   "a flat-spin grid holds spin axes in that plane only")
+        s = R @ self.major_axis_body
+        if strict:
+            _check_flat_spin(omega, self.major_axis_body, s)
         alpha = math.atan2(float(s[2]), float(s[0]))
         M = R @ self._flat_spin_rotation(alpha, 0.0).T  # = R(s, φ)
         u = np.array([0.0, 1.0, 0.0])  # ⊥ s
         Mu = M @ u
         phi = math.atan2(float(s @ np.cross(u, Mu)), float(u @ Mu))
-        return np.array([math.degrees(rate), math.degrees(alpha), math.degrees(phi)])
+        return np.array([math.degrees(float(np.linalg.norm(omega))), math.degrees(alpha), math.degrees(phi)])
 
     def _canonical(self, raw: Array) -> Array:
         """Angles moved by whole turns into each axis' window."""
@@ -345,6 +334,38 @@ class Grid:
                     order.append((nb, p))
                     queue.append(nb)
         return order
+
+
+def _finite_state(state: TargetState) -> tuple[Array, Array]:
+    """The state's quaternion (4,) and body rates (3,) [rad/s]; ``TargetStateError`` when malformed."""
+    q = np.asarray(state.attitude_wxyz, dtype=float)
+    omega = np.asarray(state.omega_body_rad_s, dtype=float)
+    if q.shape != (4,) or omega.shape != (3,):
+        raise TargetStateError(f"target state: expected a quaternion (4) and body rates (3), got shapes "
+                               f"{q.shape}, {omega.shape}")
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(omega))):
+        raise TargetStateError(f"target state must be finite, got attitude_wxyz {q.tolist()}, "
+                               f"omega_body_rad_s {omega.tolist()}")
+    return q, omega
+
+
+def _check_flat_spin(omega: Array, e: Array, s: Array) -> None:
+    """``TargetStateError`` saying why, unless ω_body [rad/s] is along +e and the world spin axis ``s`` lies
+    in the orbital x–z plane (each within :data:`FLAT_SPIN_TOL_RAD`)."""
+    if float(np.linalg.norm(omega)) == 0.0:
+        raise TargetStateError("not a flat spin: the target does not rotate (ω = 0); a flat-spin table "
+                               "needs a spin rate > 0")
+    off = math.atan2(float(np.linalg.norm(np.cross(omega, e))), float(omega @ e))
+    if off > FLAT_SPIN_TOL_RAD:
+        why = ("it spins about -e, against the grid's convention ω_body = +rate·e" if off > math.pi / 2
+               else f"ω_body is {off:.3g} rad away from it")
+        raise TargetStateError(f"not a flat spin about the major principal axis e = {np.round(e, 6).tolist()} "
+                               f"(body frame): {why} (tolerance {FLAT_SPIN_TOL_RAD:g} rad)")
+    tilt = math.asin(min(1.0, abs(float(s[1]))))
+    if tilt > FLAT_SPIN_TOL_RAD:
+        raise TargetStateError(f"flat spin with its spin axis {np.round(s, 6).tolist()} (world) {tilt:.3g} rad "
+                               f"out of the orbital x–z plane (tolerance {FLAT_SPIN_TOL_RAD:g} rad); "
+                               "a flat-spin grid holds spin axes in that plane only")
 
 
 def _major_axis(inertia_body_kg_m2: Array, source: str) -> Array:

@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 
 import h5py
+import numpy as np
 import pytest
 
 from tests.support.cli import ON_GRID_ATTITUDE, ON_GRID_OMEGA, ROOT, assert_one_line_error, lutgen, write_fake_table
@@ -27,9 +28,25 @@ def _query(table: Path, *args: str) -> subprocess.CompletedProcess:
     return lutgen("query", table, *args)
 
 
-def test_state_outside_the_grid_names_the_axis(table):
-    proc = _query(table, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", "0,0,6")
-    assert_one_line_error(proc, "outside the grid", "spin_rate_deg_s", "6")
+def test_state_outside_the_grid_is_planned_from_the_nearest_grid_state_and_says_so(table):
+    """Not refused: the table answers at the grid's edge, the plan is simulated and verified at the observed
+    state (here the stand-in records make it infeasible: exit 2, no refine in a 1 s budget)."""
+    proc = _query(table, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", "0,0,6", "--budget-s", "1")
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and "error:" not in proc.stderr
+    assert ("note: outside the grid: spin_rate_deg_s = 6 not in [3.5, 4]; the table answers at 4; planned and "
+            "verified at the observed state") in proc.stdout
+
+
+def test_a_state_a_little_off_the_flat_spin_family_is_planned_and_says_so(table):
+    """An estimator's flat spin: 0.3° of tilt out of the orbital plane and 0.03 °/s of transverse body rate."""
+    tilt = np.radians(0.3)
+    attitude = ",".join(repr(float(v)) for v in (np.cos(tilt / 2), np.sin(tilt / 2), 0.0, 0.0))
+    proc = _query(table, "--attitude", attitude, "--omega-deg-s", "0.03,0,3.75", "--budget-s", "1")
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and "error:" not in proc.stderr
+    assert "note: not a flat spin about the major principal axis" in proc.stdout
+    assert "the table answers at the nearest state of its family" in proc.stdout
 
 
 @pytest.mark.parametrize("option,value,words", [
