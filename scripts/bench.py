@@ -5,7 +5,7 @@ approach NLP by IPOPT against a finite-difference SLSQP baseline (issue 6).
 Usage, from the repository root with the project's virtual environment::
 
     .venv/bin/python scripts/bench.py                  # full: ~30 min on 2 cores, plus refines (see below)
-    .venv/bin/python scripts/bench.py --quick          # <= 3 min: no whole plans, no refine
+    .venv/bin/python scripts/bench.py --quick          # a few minutes: one cold plan per scenario, no refine
     .venv/bin/python scripts/bench.py --quick --trim   # every key, smallest sizes (tests/test_bench.py)
 
 Writes JSON (``--out``, default ``out/bench.json``) and prints a digest table. Timings are
@@ -47,7 +47,7 @@ JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline")
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="smoke run, <= 3 min: no whole plans, no refine")
+    ap.add_argument("--quick", action="store_true", help="smoke run (minutes): one cold plan per scenario, no refine")
     ap.add_argument("--trim", action="store_true",
                     help="implies --quick; the smallest run that still fills every key (fewest runs and states, tiny "
                          "build grid): what tests/test_bench.py runs, < 1 min")
@@ -57,8 +57,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--refine-budget-s", type=float, default=100.0,
                     help="full mode: per-query budget (s) of the refine of an infeasible interpolated plan")
     ap.add_argument("--plan-runs", type=int, default=None,
-                    help="whole plans per scenario and variant (full default 1, since a cold plan takes 20 s to 4 min; "
-                         "the issue asks >= 5: --plan-runs 5; quick default 0)")
+                    help="cold plans per scenario and variant (default 1; --trim 0); for a median: --plan-runs 5")
     ap.add_argument("--plan-cap-s", type=float, default=300.0, help="IPOPT wall-time cap (s) per NLP of a plan")
     ap.add_argument("--plan-with-costs", action="store_true",
                     help="also plan with cost terms (the scenario's weights, or the paper's approach costs)")

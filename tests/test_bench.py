@@ -162,7 +162,10 @@ def test_baseline_reports_both_solvers_on_the_same_problem(bench):
         assert _positive(e["time_s"]), key
         assert math.isfinite(e["objective"]) and math.isfinite(e["max_violation"]) and e["max_violation"] >= 0, key
         assert isinstance(e["success"], bool) and e["status"], key
-    assert _positive(b["time_ratio_slsqp_over_ipopt"])
+    # a ratio only between converged solves (--trim gives SLSQP one iteration: it cannot have converged)
+    assert b["ipopt_exact"]["success"] and b["ipopt_exact"]["iterations"] > 0, b["ipopt_exact"]
+    assert b["time_ratio_slsqp_over_ipopt"] is None and "SLSQP did not converge" in b["not_comparable"]
+    assert b["paper_costs"] == {"skipped": "--trim"}
 
 
 def test_only_reruns_the_named_section_and_keeps_the_others(run_path, tmp_path):

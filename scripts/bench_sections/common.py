@@ -71,7 +71,7 @@ def settings_for(quick: bool, trim: bool, seed: int, plan_runs: int | None, plan
     if not trim:
         return Settings("quick", False, repeats=5, min_calls=200, min_batch_s=0.1, verify_runs=3, query_states=10,
                         refine_budget_s=None, build_grid=(2, 3), fake_point_s=0.5, build_runs=1,
-                        plan_runs=0 if plan_runs is None else plan_runs, baseline_cap_s=60.0,
+                        plan_runs=1 if plan_runs is None else plan_runs, baseline_cap_s=60.0,
                         baseline_max_iter=200, baseline_max_delay_s=30.0, **common)
     # trim: 2 query states, not 3: each costs ~7 s and the test that runs this should stay under a minute
     return Settings("quick", True, repeats=3, min_calls=50, min_batch_s=0.02, verify_runs=1, query_states=2,

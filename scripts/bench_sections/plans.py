@@ -59,14 +59,13 @@ def plans(settings: Settings) -> dict[str, Any]:
     """The whole section."""
     out: dict[str, Any] = {"runs": settings.plan_runs, "nlp_wall_cap_s": settings.plan_cap_s,
                            "notes": "tracking_s = total − approach − stabilization (tracking IK + dense "
-                                    "re-simulation); the issue asks >= 5 runs: --plan-runs 5 (a plan takes "
-                                    "minutes, so the full default is 1); the cap is IPOPT's max_wall_s per NLP"}
+                                    "re-simulation); one cold plan per scenario by default, --plan-runs N for "
+                                    "more; the cap is IPOPT's max_wall_s per NLP"}
     for name in SCENARIO_NAMES:
         out[name] = {}
         for variant in ("feasibility", "with_costs"):
             if settings.plan_runs == 0:
-                out[name][variant] = skipped("quick mode: a plan takes minutes (the scenario II approach NLP is "
-                                             "timed in baseline.ipopt_exact)", ENTRY_KEYS)
+                out[name][variant] = skipped("--trim (or --plan-runs 0): no whole plans", ENTRY_KEYS)
                 continue
             if variant == "with_costs" and not settings.plan_with_costs:
                 out[name][variant] = skipped("not asked for (--plan-with-costs)", ENTRY_KEYS)
