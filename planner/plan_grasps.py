@@ -1,10 +1,13 @@
 """The grasps one plan tries, in order: the approach's first, then those reached from its next scanned guesses.
 
 Whether the stabilization is feasible depends strongly on the grasp (its configuration and joint rates). A
-cold plan whose stabilization fails from the first grasp tries the grasps the approach reaches from its next
-scanned guesses (other meeting times), giving each stabilization :data:`STABILIZATION_BUDGET` iterations;
-when none succeeds, the first grasp's stabilization is solved again without that budget, so the plan is
-never worse than from the first grasp alone. A warm plan keeps its grasp.
+cold plan tries the grasp of the approach's first scanned guess, then those the approach reaches from its next
+scanned guesses (other meeting times). While another grasp remains, each is screened: its coarse stabilization
+NLP, then the full one from its answer, must be feasible within :data:`SCREEN_BUDGET` iterations each; a grasp
+that passes has its stabilization (within :data:`STABILIZATION_BUDGET` iterations in all). A grasp screened
+out is set aside, and the grasps set aside get that budgeted stabilization only when no later grasp
+stabilized. When none succeeds, the first grasp's stabilization is solved again without the budget, so the
+plan is never worse than from the first grasp alone. A warm plan keeps its grasp.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
 from planner.model.target import TargetMotion, TargetState
+from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import ScanOnDemand
 from planner.phases.approach_solve import solve_approach
@@ -41,6 +45,10 @@ GRASP_GUESSES = 3
 # IPOPT iterations (coarse + full NLP) a stabilization gets while another grasp remains to be tried: successful
 # cold solves take far fewer, failing ones several times more
 STABILIZATION_BUDGET = 120
+# while another grasp remains, a grasp whose coarse stabilization, or the full one from its answer, is not feasible
+# within this many iterations is set aside for the next one (stabilizable grasps pass in a few; hopeless ones
+# would spend the whole budget)
+SCREEN_BUDGET = 20
 # a retry's approach (from the next scanned guesses) gets this many times the first approach's iterations, at
 # least APPROACH_RETRY_MIN: a neighbouring meeting time is about as hard to reach as the first
 APPROACH_RETRY_FACTOR = 3
@@ -90,9 +98,11 @@ class GraspCandidate:
         """The scenario's stabilization NLP (built on first use, kept by the planner)."""
         return self.planner.stabilization_problem
 
-    def stabilize(self, warm_params: Array | None, max_iterations: int | None) -> StabilizationSolution:
-        """The stabilization from this grasp, within ``max_iterations`` (None: the scenario's limit only)."""
-        return solve_stabilization(self.problem, self.grasp, warm_params, max_iterations)
+    def stabilize(self, warm_params: Array | None, max_iterations: int | None,
+                  screen_iterations: int | None = None) -> StabilizationSolution:
+        """The stabilization from this grasp, within ``max_iterations`` (None: the scenario's limit only),
+        screened by its coarse NLP within ``screen_iterations`` (None: no screen)."""
+        return solve_stabilization(self.problem, self.grasp, warm_params, max_iterations, screen_iterations)
 
 
 def accumulated(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:
@@ -118,24 +128,45 @@ class GraspSearch:
         return {"approach_s": self.approach_s, "stabilization_s": self.stabilization_s}
 
     def run(self) -> tuple[GraspCandidate, StabilizationSolution]:
-        """The grasp the plan is made of and its stabilization, trying the grasps in order."""
+        """The grasp the plan is made of and its stabilization, trying the grasps in order.
+
+        While another grasp remains, a grasp is screened first (:data:`SCREEN_BUDGET`); the grasps screened out
+        get their budgeted solve only when no grasp passed the screen and stabilized.
+        """
         app = self._solve_approach(self.warm.approach if self.warm is not None else None)
         first = self._candidate(app)
         self.approach_s += first.app.solve_time_s
+        screened_out: list[GraspCandidate] = []
         for candidate in self._grasps(first):
             more = self._another_grasp_remains(candidate)
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
-            stab = self._stabilize(candidate, budget)
+            stab = self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
             if stab.success or budget is None:
                 return candidate, stab
-            self.notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s failed within "
-                              f"{budget} iterations ({stab.status})" + ("; trying the approach's next guess" if more
-                                                                        else ""))
+            if stab.status == SolveOutcome.SCREENED_OUT:
+                screened_out.append(candidate)
+            self._note_failure(candidate, stab, "trying the approach's next guess" if more else "")
+        for candidate in screened_out:
+            stab = self._stabilize(candidate, STABILIZATION_BUDGET)
+            if stab.success:
+                return candidate, stab
+            self._note_failure(candidate, stab, "")
         # a budgeted failure is never the answer: the first grasp gets its whole solve
         self.notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
                           "again without it")
         return first, self._stabilize(first, None)
+
+    def _note_failure(self, candidate: GraspCandidate, stab: StabilizationSolution, then: str) -> None:
+        """Say in the plan's notes that the stabilization from ``candidate`` failed, and what comes next."""
+        if stab.status == SolveOutcome.SCREENED_OUT:
+            what = (f"was screened out (not feasible within {SCREEN_BUDGET} iterations of the coarse NLP, then of the "
+                    f"full one: peak grasp torque {stab.peak_torque_nm:.3g} N·m, min distance "
+                    f"{stab.min_distance_m:.3g} m after {stab.iterations})")
+        else:
+            what = f"failed within {stab.iterations} iterations ({stab.status})"
+        self.notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s {what}"
+                          + (f"; {then}" if then else ""))
 
     def _another_grasp_remains(self, candidate: GraspCandidate) -> bool:
         """True when a cold plan's approach has a next scanned guess after ``candidate``'s."""
@@ -162,9 +193,10 @@ class GraspSearch:
         return solve_approach(self.planner.approach, self.state, warm, tracking_speed_scale=self.tracking_speed_scale,
                               scan=self.scan, **options)
 
-    def _stabilize(self, candidate: GraspCandidate, budget: int | None) -> StabilizationSolution:
+    def _stabilize(self, candidate: GraspCandidate, budget: int | None,
+                   screen: int | None = None) -> StabilizationSolution:
         t0 = time.perf_counter()
-        result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget)
+        result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget, screen)
         self.stabilization_s += time.perf_counter() - t0
         return result
 

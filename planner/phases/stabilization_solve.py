@@ -21,7 +21,8 @@ Array = NDArray[np.float64]
 
 
 def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None = None,
-                        max_iterations: int | None = None) -> StabilizationSolution:
+                        max_iterations: int | None = None, screen_iterations: int | None = None,
+                        ) -> StabilizationSolution:
     """Solve ``problem`` for ``grasp``, from ``warm_params`` ``(7·(N−5),)`` or, cold, by way of the coarse problem.
 
     A cold start first solves the coarse NLP from :meth:`~StabilizationProblem.initial_params` and starts the
@@ -29,23 +30,36 @@ def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_p
     is solved from the initial parameters as well, so a cold solve never does worse than the full NLP alone.
     The returned times and iteration counts cover every solve made. ``max_iterations`` (None: only the
     scenario's per-NLP ``max_iter``) bounds the IPOPT iterations of all those solves together; a solve that
-    spends it ends unsuccessful with status ``Iteration_Budget_Exhausted``.
+    spends it ends unsuccessful with status ``Iteration_Budget_Exhausted``. ``screen_iterations`` (cold only)
+    screens the grasp: the coarse NLP, and then the full NLP from its answer, each get at most that many
+    iterations, and a grasp where either is not feasible within them is given up at once (status
+    ``Screened_Out``, no full solve from the initial parameters); a grasp that passes has the very answer of an
+    unscreened solve (the same iterates, only the budgets are smaller).
     """
     if warm_params is not None or problem.coarse_via_points == 0:
         return solve_once(problem, grasp, warm_params, max_iterations)
     coarse = problem.coarse_problem()
-    attempts = [solve_once(coarse, grasp, None, max_iterations)]
-    for start in (attempts[0].params, None):
+    attempts = [solve_once(coarse, grasp, None, _screened(max_iterations, screen_iterations))]
+    screened_out = screen_iterations is not None and not attempts[0].success
+    for start in () if screened_out else (attempts[0].params, None):
         left = None if max_iterations is None else max_iterations - sum(a.iterations for a in attempts)
         if left is not None and left <= 0:
             break
-        attempts.append(solve_once(problem, grasp, start, left))
-        if attempts[-1].success:
+        attempts.append(solve_once(problem, grasp, start, _screened(left, screen_iterations)))
+        screened_out = screen_iterations is not None and not attempts[-1].success
+        if attempts[-1].success or screened_out:
             break
     last = attempts[-1]
     return replace(last, iterations=sum(a.iterations for a in attempts),
                    solve_time_s=sum(a.solve_time_s for a in attempts),
-                   build_time_s=problem.build_time_s + coarse.build_time_s)
+                   build_time_s=problem.build_time_s + coarse.build_time_s,
+                   status=SolveOutcome.SCREENED_OUT if screened_out else last.status)
+
+
+def _screened(max_iterations: int | None, screen_iterations: int | None) -> int | None:
+    """The coarse solve's iteration budget: the whole budget, or the screen's if smaller."""
+    budgets = [b for b in (max_iterations, screen_iterations) if b is not None]
+    return min(budgets) if budgets else None
 
 
 def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None,

@@ -16,8 +16,10 @@ import pytest
 import planner.phases.approach_guess as approach_guess_module
 import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
+from planner.nlp.outcome import SolveOutcome
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
+from planner.plan_grasps import SCREEN_BUDGET
 
 SCENARIO_II = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "scenario_II.toml"
 
@@ -28,16 +30,22 @@ def planner_II():
     return sc, Planner(sc)
 
 
-def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: int, problems: list | None = None):
-    """A ``GraspCandidate.stabilize`` that records (start guess, budget, grasp time), and the NLP object used
-    in ``problems``, and succeeds only from grasps reached from scanned guess ``succeed_from_guess`` or later."""
+def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: int, problems: list | None = None,
+              screens: list | None = None, pass_screen_from_guess: int = 0):
+    """A ``GraspCandidate.stabilize`` that records (start guess, budget, grasp time), the NLP object used in
+    ``problems`` and the screen asked for in ``screens``, and succeeds only from grasps reached from scanned guess
+    ``succeed_from_guess`` or later; screened, grasps before ``pass_screen_from_guess`` are screened out."""
 
-    def stabilize(self: GraspCandidate, warm_params, max_iterations):
+    def stabilize(self: GraspCandidate, warm_params, max_iterations, screen_iterations=None):
         calls.append((self.app.start_guess, max_iterations, self.grasp_time_s))
         if problems is not None:
             problems.append(self.problem)
+        if screens is not None:
+            screens.append(screen_iterations)
         ok = self.app.start_guess >= succeed_from_guess
         status = "stand-in ok" if ok else "stand-in failed"
+        if screen_iterations is not None and self.app.start_guess < pass_screen_from_guess:
+            ok, status = False, SolveOutcome.SCREENED_OUT
         return replace(StabilizationSolution.given(self.problem.initial_params(self.grasp)), success=ok, status=status,
                        iterations=1)
 
@@ -101,3 +109,30 @@ def test_a_warm_plan_keeps_its_grasp(planner_II, monkeypatch):
     # the scanned guesses' meeting times lie several seconds apart
     assert warm.t_grasp == pytest.approx(cold.t_grasp, abs=0.5)
     np.testing.assert_allclose(warm.approach.base_offset_m, cold.approach.base_offset_m, atol=1e-2)
+
+
+def test_screened_out_grasps_wait_until_no_grasp_passed_the_screen(planner_II, monkeypatch):
+    """While another grasp remains a grasp is screened; one screened out is not stabilized under the budget
+    at once, the next grasp is tried first; the grasps screened out get their budgeted solve only when no later
+    grasp stabilized, then the first grasp its whole solve."""
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    screens: list = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1, screens=screens, pass_screen_from_guess=1))
+    plan = planner.plan(sc.target_state.as_state())
+    assert [c[0] for c in calls] == [0, 1] and screens == [SCREEN_BUDGET, SCREEN_BUDGET]
+    assert plan.approach.start_guess == 1 and plan.stabilization.status == "stand-in ok"
+    assert "screened out" in plan.notes[0] and "trying the approach's next guess" in plan.notes[0]
+    # nothing passes the screen or stabilizes: the last grasp is not screened (no other remains), then the
+    # screened-out grasps in order under the budget, then the first grasp whole
+    calls.clear()
+    screens.clear()
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES, screens=screens,
+                                                               pass_screen_from_guess=GRASP_GUESSES))
+    plan = planner.plan(sc.target_state.as_state())
+    guesses = [c[0] for c in calls]
+    n = guesses.index(max(guesses)) + 1  # the first round, up to the last grasp
+    assert screens[:n] == [SCREEN_BUDGET] * (n - 1) + [None]
+    assert guesses[n:] == [*guesses[:n - 1], 0] and screens[n:] == [None] * (len(calls) - n)
+    assert [c[1] for c in calls[n:]] == [STABILIZATION_BUDGET] * (n - 1) + [None]
+    assert plan.approach.start_guess == 0 and "solved again without it" in plan.notes[-1]

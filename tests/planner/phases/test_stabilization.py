@@ -2,11 +2,13 @@
 
 The grasp state is scenario II's grasp taken from the bundled plan (tests/data/plan_II.json.gz): joint
 state and base pose at the tracking end, grasp frame from the export, and the compound momentum formed
-by the planner's own ``grasp_momentum_world``.
+by the planner's own ``grasp_momentum_world``. The screen's test uses the two grasps scenario II's default
+state is planned from (tests/data/grasps_II.json): the approach's first, which the NLP cannot brake, and the next.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,6 +20,7 @@ from planner.config.scenario import load_scenario
 from planner.model.compound import compound_robot
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.rotation import quat_to_matrix
+from planner.nlp.outcome import SolveOutcome
 from planner.phases import stabilization_solve
 from planner.phases.stabilization import (
     GraspState,
@@ -26,6 +29,7 @@ from planner.phases.stabilization import (
     grasp_momentum_world,
 )
 from planner.phases.stabilization_solve import solve_stabilization
+from planner.plan_grasps import SCREEN_BUDGET, STABILIZATION_BUDGET
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -156,3 +160,52 @@ def test_a_real_solve_stops_at_its_iteration_budget(problem, grasp):
     iterations) a budget of 3 ends the solve after exactly 3 iterations, unsuccessful, named as such."""
     sol = stabilization_solve.solve_once(problem, grasp, None, 3)
     assert sol.iterations == 3 and not sol.success and sol.status == "Iteration_Budget_Exhausted"
+
+
+def test_a_screen_ends_a_cold_solve_whose_coarse_nlp_is_not_feasible_within_it(problem, grasp, monkeypatch):
+    """With a screen the coarse NLP, then the full one from its answer, get the smaller of what is left of the
+    budget and the screen; a failure of either ends the solve at once (no full NLP from the initial parameters),
+    named ``Screened_Out``; when both pass, the answer is the full NLP's."""
+    template = StabilizationSolution(np.zeros(problem.n_params), False, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    for coarse_ok, full_ok, expected in ((False, True, [(False, 20)]), (True, False, [(False, 20), (True, 20)]),
+                                         (True, True, [(False, 20), (True, 20)])):
+        calls = []
+
+        def fake_solve(nlp, g, warm_params, max_iterations=None, oks=(coarse_ok, full_ok), calls=calls):
+            calls.append((nlp is problem, max_iterations))
+            ok = oks[nlp is problem]
+            return replace(template, iterations=10 if ok else max_iterations, success=ok,
+                           status="ok" if ok else "Iteration_Budget_Exhausted")
+
+        monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+        sol = solve_stabilization(problem, grasp, max_iterations=120, screen_iterations=20)
+        assert calls == expected
+        assert sol.success is (coarse_ok and full_ok)
+        assert sol.status == ("ok" if coarse_ok and full_ok else SolveOutcome.SCREENED_OUT)
+        assert sol.iterations == sum(10 if ok else 20 for ok in (coarse_ok, full_ok)[:len(expected)])
+    # warm solves are never screened: they keep their grasp
+    calls.clear()
+    solve_stabilization(problem, grasp, problem.initial_params(grasp), max_iterations=30, screen_iterations=20)
+    assert calls == [(True, 30)]
+
+
+@pytest.fixture(scope="module")
+def scanned_grasps() -> list[GraspState]:
+    doc = json.loads((ROOT / "tests" / "data" / "grasps_II.json").read_text(encoding="utf-8"))
+    return [GraspState(*(np.asarray(g[k], dtype=float) for k in ("q", "qd", "qdd", "x_base", "h_world", "T_ee_target")))
+            for g in doc["grasps"]]
+
+
+def test_the_screen_sets_aside_the_grasp_the_nlp_cannot_brake_and_passes_the_one_it_can(problem, scanned_grasps):
+    """Scenario II's first grasp (the NLP ends Infeasible_Problem_Detected after 884 iterations from it) is
+    screened out, with the panel still inside the chaser and the torque over its limit; the next grasp passes
+    the screen and stabilizes, with the very answer of the unscreened solve."""
+    hopeless, braked = scanned_grasps
+    out = solve_stabilization(problem, hopeless, max_iterations=STABILIZATION_BUDGET, screen_iterations=SCREEN_BUDGET)
+    assert out.status == SolveOutcome.SCREENED_OUT and not out.success and out.iterations == SCREEN_BUDGET
+    assert out.min_distance_m < 0.0 and out.peak_torque_nm > problem.scenario.limits.grasp_torque_max_nm
+    ok = solve_stabilization(problem, braked, max_iterations=STABILIZATION_BUDGET, screen_iterations=SCREEN_BUDGET)
+    assert ok.success and ok.iterations <= 2 * SCREEN_BUDGET
+    assert ok.peak_torque_nm <= problem.scenario.limits.grasp_torque_max_nm and ok.min_distance_m > 0.02
+    plain = solve_stabilization(problem, braked, max_iterations=STABILIZATION_BUDGET)
+    np.testing.assert_array_equal(ok.params, plain.params)
