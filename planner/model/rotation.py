@@ -29,12 +29,6 @@ def quat_multiply(q1: ArrayLike, q2: ArrayLike) -> NDArray[np.float64]:
     ])
 
 
-def quat_conjugate(q: ArrayLike) -> NDArray[np.float64]:
-    """Conjugate (inverse for a unit quaternion)."""
-    w, x, y, z = np.asarray(q, dtype=float)
-    return np.array([w, -x, -y, -z])
-
-
 def quat_to_matrix(q: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix of a ``[w, x, y, z]`` quaternion (normalised first); a stack (..., 4) gives (..., 3, 3)."""
     q = np.asarray(q, dtype=float)
@@ -84,13 +78,6 @@ def axis_angle_to_matrix(axis: ArrayLike, angle_rad: float) -> NDArray[np.float6
     k = k / np.linalg.norm(k)
     K = skew(k)
     return np.eye(3) + np.sin(angle_rad) * K + (1.0 - np.cos(angle_rad)) * (K @ K)
-
-
-def rotation_angle_between(R_a: ArrayLike, R_b: ArrayLike) -> float:
-    """Angle [rad] of the relative rotation ``R_aᵀ R_b``, in [0, π]."""
-    R = np.asarray(R_a, dtype=float).T @ np.asarray(R_b, dtype=float)
-    c = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.arccos(c))
 
 
 # rotation angles above π − this use the symmetric part of R for the axis: there the antisymmetric part,
