@@ -43,8 +43,8 @@ class PlanParameters:
         """The flat-spin phase ↔ time symmetry: a target whose spin phase is ahead by Δφ reaches the same
         configuration Δφ/rate earlier, so ``shift_s`` = −Δφ/rate [s].
 
-        With a spin period and a largest delay, the delay is wrapped by the period into [0, max_delay_s]
-        (clamped to the window's nearer end when no multiple of the period lands inside it).
+        With a spin period and a largest delay, the delay is taken modulo the period and clamped to
+        ``max_delay_s`` when it lands beyond the window (:func:`wrap_start_delay`).
         """
         tau = self.approach.start_delay_s + shift_s
         if period_s is not None and max_delay_s is not None and np.isfinite(period_s) and period_s > 0:
@@ -73,11 +73,11 @@ class PlanParameters:
 
 
 def wrap_start_delay(tau_s: float, period_s: float, max_delay_s: float) -> float:
-    """``tau_s`` modulo the spin period, moved into [0, max_delay_s] when a period's multiple allows [s]."""
+    """``tau_s`` modulo the spin period [s]; beyond ``max_delay_s`` it is clamped to ``max_delay_s``."""
     tau = tau_s % period_s
-    if tau > max_delay_s:
-        tau = min(max_delay_s, max(0.0, tau - period_s)) if tau - period_s >= 0 else max_delay_s
-    return tau
+    if tau <= max_delay_s:
+        return tau
+    return 0.0 if tau >= period_s else max_delay_s  # a tiny negative tau_s modulo the period rounds to the period
 
 
 def circular_gap(a: float, b: float, period_s: float) -> float:
