@@ -98,9 +98,8 @@ def rate_consistency_check(robot: RobotModel, t: Array, q: Array, qd: Array, pha
         rows = np.flatnonzero(phase_index[sel] == p)
         err[rows] = np.abs(derivatives(t, q, sel[rows], seg, 1) - qd[sel[rows]])
     r, j = np.unravel_index(int(np.argmax(err)), err.shape)
-    worst = (float(err[r, j]), int(sel[r]), int(j))
-    e, k, j = worst
-    return make_check("joint_rate_consistency", e, RATE_CONSISTENCY_TOL_RAD_S, "rad/s",
+    k = int(sel[r])
+    return make_check("joint_rate_consistency", err[r, j], RATE_CONSISTENCY_TOL_RAD_S, "rad/s",
                       f"{robot.joints[j].name}: |q̇ − FD(q)| at {when(t[k], phase_index[k])}", t[k])
 
 
