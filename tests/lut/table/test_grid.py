@@ -11,6 +11,7 @@ import pytest
 
 from lut.table.grid import Grid
 from lut.table.grid_config import Axis, GridConfig, load_grid, load_grid_text
+from lut.table.grid_projection import project_to_grid
 from lut.table.symmetry import phase_time_shift_s
 from planner.config.scenario import load_scenario
 from planner.errors import ConfigError, TargetStateError
@@ -273,6 +274,36 @@ def test_angles_are_taken_in_the_axis_window(grids):
     t = grids["tumble"]
     np.testing.assert_allclose(t.coordinates_of_state(t.state_at([1, 2, 3, 0.0, 10.0, 20.0 + 360.0])),
                                [1, 2, 3, 0, 10, 20], atol=1e-9)
+
+
+def test_degenerate_states_are_answered_at_the_nearest_grid_coordinates(grids):
+    """The states the strict inverse refuses (ω = 0, a spin about -e, a spin axis along the orbit normal,
+    pitch exactly 90°) still get in-bounds coordinates with a note saying why: the query never fails on them."""
+    g, t = grids["three_axes"], grids["tumble"]
+    q0, rate = np.array([1.0, 0.0, 0.0, 0.0]), np.radians(4.0)
+    h = math.sqrt(0.5)
+    cases = [
+        (g, TargetState(q0, [0.0, 0.0, 0.0]), ["does not rotate", "spin_rate_deg_s = 0 not in [3, 4]"],
+         [3.0, 90.0, 0.0]),
+        (g, TargetState(q0, rate * np.array([0.0, 0.0, -1.0])), ["-e"], [4.0, 90.0, 0.0]),
+        (g, TargetState(matrix_to_quat(axis_angle_to_matrix([1, 0, 0], -np.pi / 2)), [0.0, 0.0, rate]),
+         ["x–z plane"], None),  # s = +y: α is undefined, any in-bounds answer will do
+        (t, TargetState(np.array([h, 0.0, h, 0.0]), np.radians([1.0, 2.0, 3.0])),
+         ["pitch ±90", "pitch_deg = 90 not in [-30, 30]"], [1.0, 2.0, 3.0, 0.0, 30.0, 0.0]),
+    ]
+    for grid, state, words, expected in cases:
+        projection = project_to_grid(grid, state)
+        assert len(projection.notes) == len(words)
+        for note, word in zip(projection.notes, words, strict=True):
+            assert word in note
+        for x, ax in zip(projection.coords, grid.axes, strict=True):
+            assert ax.periodic or ax.min <= x <= ax.max, ax.name
+        if expected is not None:
+            np.testing.assert_allclose(projection.coords, expected, atol=1e-9)
+        assert grid.locate(projection.coords).weights.sum() == pytest.approx(1.0)
+    # at pitch 90° the family's coordinates (roll 0) are still the state's own attitude
+    tilted = cases[-1][1]
+    assert _same_state(t.state_at(t.family_coordinates(tilted)), tilted) < 1e-12
 
 
 # ---- symmetry --------------------------------------------------------------------------------------
