@@ -24,7 +24,6 @@ Record = dict[str, Any]
 # the plan parameters' keys, in record order (all numeric arrays or numbers a query interpolates)
 PARAMETER_KEYS = ("approach_params", "base_offset_m", "start_delay_s", "q_tracking", "stabilization_params")
 MAX_REASON_CHARS = 2000  # a failure reason is cut here: a record stays small
-_BASE_KEYS = ("point", "status", "failure_reason", "solve_time_s", "iterations")
 
 
 def result_from_plan(point: int, plan: GraspPlan, report: VerifyReport) -> PointResult:
