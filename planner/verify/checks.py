@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from planner.collision.layout import TARGET_BODY, scene_layout
+from planner.collision.layout import TARGET_BODY, SceneLayout
 from planner.config.scenario import Scenario
 from planner.model.robot import RobotModel
 from planner.model.target import TargetMotion
@@ -114,12 +114,11 @@ class CollisionSamples:
     pair_min_distance_m: dict[str, float]  # "A-B" -> min over the samples where it keeps the full margin
 
 
-def collision_check(sc: Scenario, chaser: PinKinematics, t: Array, x: Array, q: Array, phase_index: Array,
-                    phases: dict[str, tuple[float, float]], sel: Array,
+def collision_check(sc: Scenario, layout: SceneLayout, chaser: PinKinematics, t: Array, x: Array, q: Array,
+                    phase_index: Array, phases: dict[str, tuple[float, float]], sel: Array,
                     T_target: Array) -> tuple[CheckResult, CollisionSamples]:
     """Signed distance of every scene pair at the verified samples against the handle-contact rule
     (:mod:`planner.collision.contact_rule`), by verify's own engine (:mod:`planner.verify.collision`)."""
-    layout = scene_layout(sc.robot, sc.target)
     frames: dict[str, list[Array]] = {name: [] for name in sc.robot.body_names}
     for k in sel:
         chaser.forward(x[k], q[k])

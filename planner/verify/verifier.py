@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.collision.contact_rule import exemption_note
-from planner.collision.layout import scene_layout
+from planner.collision.layout import SceneLayout, scene_layout
 from planner.model.compound import compound_robot
 from planner.model.target import TargetMotion
 from planner.verify.checks import (
@@ -144,7 +144,6 @@ def verify(plan: VerifiablePlan, step_s: float = DEFAULT_STEP_S) -> VerifyReport
     checks, contact, momentum, wrench = _run_checks(plan, s, w, sel)
     violations = [f"{c.name}: {c.value:.6g} {c.unit} vs limit {c.limit:.6g} {c.unit} (margin {c.margin:.3g}), "
                   f"{c.where}" for c in checks.values() if not c.passed]
-    sc = plan.scenario
     return VerifyReport(
         feasible=not violations, checks=checks, violations=violations, t=s.t[sel], sample_index=sel,
         phase_index=s.phase_index[sel], min_distance_m=contact.min_distance_m, closest_pair=contact.closest_pair,
@@ -154,7 +153,7 @@ def verify(plan: VerifiablePlan, step_s: float = DEFAULT_STEP_S) -> VerifyReport
         momentum_world=momentum, pair_min_distance_m=contact.pair_min_distance_m,
         pair_count=len(contact.pair_min_distance_m),
         step_s=float(np.diff(s.t[sel]).max()) if len(sel) > 1 else 0.0, t_grasp_s=s.t_grasp,
-        collision_rule=exemption_note(scene_layout(sc.robot, sc.target).gripper_handle))
+        collision_rule=exemption_note(w.layout.gripper_handle))
 
 
 @dataclass(frozen=True)
@@ -205,6 +204,7 @@ class _World:
     T_free: Array  # the target moving torque-free
     T_attached: Array  # the target held by the gripper
     T_target: Array  # free up to the grasp, attached after it
+    layout: SceneLayout  # the scene's collision bodies and pairs
 
 
 def _world(plan: VerifiablePlan, s: _Samples) -> _World:
@@ -224,7 +224,8 @@ def _world(plan: VerifiablePlan, s: _Samples) -> _World:
     T_free[:, :3, :3], T_free[:, :3, 3] = motion.body_pose(s.t)
     T_attached = T_ee @ T_ee_target
     T_target = np.where((s.t > s.t_grasp + TIME_TOL_S)[:, None, None], T_attached, T_free)
-    return _World(motion, chaser, compound, T_body_grasp, T_ee, T_free, T_attached, T_target)
+    return _World(motion, chaser, compound, T_body_grasp, T_ee, T_free, T_attached, T_target,
+                  scene_layout(sc.robot, sc.target))
 
 
 def _run_checks(plan: VerifiablePlan, s: _Samples, w: _World,
@@ -236,7 +237,8 @@ def _run_checks(plan: VerifiablePlan, s: _Samples, w: _World,
     checks: dict[str, CheckResult] = {}
     checks.update(joint_checks(robot, t, q, qd, phase_index))
     checks["joint_rate_consistency"] = rate_consistency_check(robot, t, q, qd, phase_index, segments, sel)
-    checks["collision"], contact = collision_check(sc, w.chaser, t, x, q, phase_index, plan.phases, sel, w.T_target)
+    checks["collision"], contact = collision_check(sc, w.layout, w.chaser, t, x, q, phase_index, plan.phases, sel,
+                                                   w.T_target)
     mom, momentum = momentum_checks(w.chaser, w.compound, w.motion, t, x, q, qd, phase_index, segments, sel,
                                     s.k_pre, s.k_post)
     checks.update(mom)
