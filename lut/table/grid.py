@@ -213,7 +213,7 @@ class Grid:
         c = np.array(raw, dtype=float)
         for i, ax in enumerate(self.axes):
             if ax.periodic:
-                c[i] = ax.min + ((c[i] - ax.min + COORD_TOL) % 360.0) - COORD_TOL
+                c[i] = _phase_window(ax, c[i])
             elif ax.name in ANGLE_AXES:
                 centre = 0.5 * (ax.min + ax.max)
                 c[i] += 360.0 * round((centre - c[i]) / 360.0)
@@ -241,7 +241,7 @@ class Grid:
         for i, (ax, vals) in enumerate(zip(self.axes, self._values, strict=True)):
             x = c[i]
             if ax.periodic:
-                x = ax.min + ((x - ax.min + COORD_TOL) % 360.0) - COORD_TOL
+                x = _phase_window(ax, x)
                 c[i] = x
             elif not (ax.min - COORD_TOL <= x <= ax.max + COORD_TOL):
                 fixed = f" (the grid fixes this axis at {ax.min:.10g})" if ax.count == 1 else ""
@@ -334,6 +334,12 @@ class Grid:
                     order.append((nb, p))
                     queue.append(nb)
         return order
+
+
+def _phase_window(ax: Axis, x: float) -> float:
+    """``x`` [deg] moved by whole turns into the periodic axis' window ``[min, min + 360)`` (a value within
+    :data:`COORD_TOL` below ``min`` stays there: on the grid's first value, not a turn later)."""
+    return ax.min + ((x - ax.min + COORD_TOL) % 360.0) - COORD_TOL
 
 
 def _finite_state(state: TargetState) -> tuple[Array, Array]:
