@@ -321,6 +321,21 @@ def test_rotation_log_inverts_the_exponential_at_every_angle():
     assert rotation_log(R).shape == (60, 3) and rotation_log(R[0]).shape == (3,)
 
 
+@pytest.mark.parametrize("axis", np.vstack([np.eye(3), -np.eye(3)]), ids=["x", "y", "z", "-x", "-y", "-z"])
+def test_rotation_log_degenerate_cases_about_a_coordinate_axis(axis):
+    """The identity, and rotations about a coordinate axis of either sign (the symmetric part's diagonal
+    picks the axis column, whose sign must come from sin θ · u) up to exactly π, where the log is ±π u:
+    either sign must give the rotation back."""
+    np.testing.assert_array_equal(rotation_log(np.eye(3)), np.zeros(3))
+    for angle in (1e-12, 0.5, np.pi - 1e-3, np.pi - 1e-6):
+        np.testing.assert_allclose(rotation_log(pin.exp3(axis * angle)), axis * angle, rtol=0.0, atol=1e-14)
+    R_pi = pin.exp3(axis * np.pi)
+    phi = rotation_log(R_pi)
+    assert abs(np.linalg.norm(phi) - np.pi) < 1e-14
+    assert abs(abs(phi @ axis) - np.pi) < 1e-14
+    np.testing.assert_allclose(pin.exp3(phi), R_pi, rtol=0.0, atol=1e-14)
+
+
 def test_quaternion_stacks_convert_like_single_quaternions():
     q = np.random.default_rng(5).normal(size=(4, 3, 4))
     stacked = quat_to_matrix(q)
