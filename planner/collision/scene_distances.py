@@ -98,8 +98,6 @@ def distance_gradient(pd: PairDistance, J_point_a: ArrayLike, J_point_b: ArrayLi
 class CollisionScene:
     """Bodies of boxes and capsules and the body pairs whose signed distance is queried."""
 
-    distance_gradient = staticmethod(distance_gradient)
-
     def __init__(self, bodies: Sequence[CollisionBody], pairs: Sequence[tuple[str, str]],
                  scale: float | Mapping[str, float] = 1.0) -> None:
         """Build the scene.

@@ -407,7 +407,6 @@ def test_distance_gradient_matches_central_differences(kind: str) -> None:
         J_a = np.hstack([_point_jacobian(pd.p_world_a, T_a), np.zeros((3, 6))])
         J_b = np.hstack([np.zeros((3, 6)), _point_jacobian(pd.p_world_b, T_b)])
         grad = distance_gradient(pd, J_a, J_b)
-        assert CollisionScene.distance_gradient(pd, J_a, J_b) == pytest.approx(grad)
         fd = np.empty(12)
         for k in range(12):
             e = np.zeros(12)
