@@ -171,13 +171,12 @@ class Planner:
     def candidate_from(self, app: ApproachSolution, samples: PhaseSamples, tr: TrackingResult,
                        motion: TargetMotion) -> GraspCandidate:
         """The grasp ``app`` and its tracking ``tr`` lead to, with the compound's state there."""
-        grasp, T_body_grasp_used = grasp_state(self.scenario, self.ff, tr, motion)
-        return GraspCandidate(self, app, samples, tr, grasp, T_body_grasp_used)
+        return GraspCandidate(self, app, samples, tr, *grasp_state(self.scenario, self.ff, tr, motion))
 
     def assemble(self, state: TargetState, c: GraspCandidate, stab: StabilizationSolution,
                  timings: dict[str, float], notes: list[str]) -> GraspPlan:
         """The plan of grasp ``c`` stabilized by ``stab``: the phases joined into one dense trajectory."""
-        stab_samples = stabilization_samples(self.scenario, self.stabilization_spline, stab, c.grasp)
+        stab_samples = stabilization_samples(self.stabilization_spline, c.compound, stab, c.grasp)
         traj = joined(self.scenario, c.app.start_delay_s, c.approach_samples, c.tracking, stab_samples)
         return GraspPlan(self.scenario, state, c.app, c.tracking, stab, c.grasp, c.T_body_grasp_used, traj.phases,
                          traj.t, traj.q, traj.qd, traj.x_base, traj.phase_index, dict(timings),

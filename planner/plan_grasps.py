@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
+from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
@@ -86,6 +87,7 @@ class GraspCandidate:
     tracking: TrackingResult
     grasp: GraspState
     T_body_grasp_used: Array  # (4, 4)
+    compound: FreeFloatingModel  # the compound chaser + target of this grasp
 
     @property
     def grasp_time_s(self) -> float:

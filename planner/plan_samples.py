@@ -71,17 +71,18 @@ def approach_samples(scenario: Scenario, spline: UniformCubicBSpline, ff: FreeFl
                                                    1.0, 0.0, 0.0, 0.0]), np.zeros(6))
 
 
-def stabilization_samples(scenario: Scenario, spline: UniformCubicBSpline, stab: StabilizationSolution,
+def stabilization_samples(spline: UniformCubicBSpline, compound: FreeFloatingModel, stab: StabilizationSolution,
                           grasp: GraspState) -> PhaseSamples:
-    """The stabilization re-simulated from its parameters, the compound starting at the grasp state."""
+    """The stabilization re-simulated from its parameters, the ``compound`` (of :func:`grasp_state`) starting at
+    the grasp state."""
     V = stabilization_vertices(spline, grasp.q, grasp.qd, grasp.qdd, stab.params)
-    ff_c = FreeFloatingModel(compound_robot(scenario, grasp.T_ee_target))
-    return spline_samples(spline, V, ff_c, grasp.x_base, grasp.h_world)
+    return spline_samples(spline, V, compound, grasp.x_base, grasp.h_world)
 
 
 def grasp_state(scenario: Scenario, ff: FreeFloatingModel, tr: TrackingResult,
-                motion: TargetMotion) -> tuple[GraspState, Array]:
-    """Compound state at the grasp, its momentum, and the grasp frame used ``(4, 4)`` (free-axis angle applied)."""
+                motion: TargetMotion) -> tuple[GraspState, Array, FreeFloatingModel]:
+    """Compound state at the grasp, its momentum, the grasp frame used ``(4, 4)`` (free-axis angle applied), and
+    the compound's free-floating model (built once: the stabilization's re-simulation reuses it)."""
     sc = scenario
     T_bg = sc.target.grasp.T_body_grasp.copy()
     axis = sc.target.grasp.free_axis
@@ -89,9 +90,10 @@ def grasp_state(scenario: Scenario, ff: FreeFloatingModel, tr: TrackingResult,
         T_bg[:3, :3] = T_bg[:3, :3] @ axis_angle_to_matrix(axis, tr.free_axis_angle_rad)
     T_ee_target = np.linalg.inv(T_bg)  # the ee frame coincides with the grasp frame at the grasp
     q, qd, x = tr.q[-1], tr.qd[-1], tr.x_base[-1]
-    h_world = grasp_momentum_world(ff, FreeFloatingModel(compound_robot(sc, T_ee_target)), q, qd, x)
+    compound = FreeFloatingModel(compound_robot(sc, T_ee_target))
+    h_world = grasp_momentum_world(ff, compound, q, qd, x)
     qdd = tr.qdd_end if sc.stabilization.start_acceleration == "continuous" else np.zeros_like(qd)
-    return GraspState(q, qd, qdd, x, h_world, T_ee_target), T_bg
+    return GraspState(q, qd, qdd, x, h_world, T_ee_target), T_bg, compound
 
 
 def joined(scenario: Scenario, start_delay_s: float, app: PhaseSamples, tr: TrackingResult,
