@@ -24,10 +24,11 @@ def journal_path(table_path: Path) -> Path:
     return table_path.with_name(table_path.name + ".journal")
 
 
-def existing_work(table_path: Path, jpath: Path, options: BuildOptions, mhash: str, config: GridConfig) -> bool:
+def existing_work(table_path: Path, jpath: Path, options: BuildOptions, mhash: str,
+                  config: GridConfig) -> Table | None:
     """Apply the overwrite and resume rules to what is at ``table_path``: raise :class:`LutgenError` where the
-    build must not start, delete an interrupted journal under ``--force``, and return True when the table is
-    complete and ``--resume`` leaves it as it is."""
+    build must not start, delete an interrupted journal under ``--force``, and return the table (as read) when it
+    is complete and ``--resume`` leaves it as it is, else ``None``."""
     status = journal_status(jpath)
     if status is JournalStatus.IN_USE:
         raise LutgenError(f"{jpath}: another build of {table_path} is running (its journal is locked); "
@@ -38,9 +39,9 @@ def existing_work(table_path: Path, jpath: Path, options: BuildOptions, mhash: s
         elif not options.resume:
             raise LutgenError(f"{jpath} exists: an earlier build of {table_path} was interrupted; rerun with "
                               "--resume to continue it, or --force to start over")
-        return False
+        return None
     if not table_path.exists() or options.force:
-        return False
+        return None
     if not options.resume:
         raise LutgenError(f"{table_path} exists: --force to build it again (the old table stays until the new "
                           "one is complete), or another --out")
@@ -50,13 +51,12 @@ def existing_work(table_path: Path, jpath: Path, options: BuildOptions, mhash: s
                           "to resume; --force to build it again")
     if table.counts()["pending"]:
         raise LutgenError(f"{table_path} has pending points but no journal to resume; --force to build it again")
-    return True
+    return table
 
 
-def complete_summary(table_path: Path, t_start: float) -> BuildSummary:
+def complete_summary(table: Table, t_start: float) -> BuildSummary:
     """The summary of a complete table that ``--resume`` leaves as it is (``t_start``: ``perf_counter`` [s])."""
-    table = Table.open(table_path)
     reasons = table.field("failure_reason")
     failures = [f"point {p}: {reasons[p]}" for p in np.flatnonzero(table.status == PointStatus.FAILED.code)]
-    return BuildSummary(table_path, table.n_points, table.counts(), 0, time.perf_counter() - t_start, failures,
+    return BuildSummary(table.path, table.n_points, table.counts(), 0, time.perf_counter() - t_start, failures,
                         BuildOutcome.ALREADY_COMPLETE)

@@ -80,8 +80,9 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     inputs = [grid_path, config.scenario_path, scenario.robot.urdf_path, scenario.target.source]
     check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
     mhash = table_hash(scenario)
-    if existing_work(table_path, jpath, options, mhash, config):
-        return complete_summary(table_path, t_start)
+    complete = existing_work(table_path, jpath, options, mhash, config)
+    if complete is not None:
+        return complete_summary(complete, t_start)
     done, solved_now = _journaled_sweep(grid, config, options, jpath, mhash, on_result)
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
                 grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
