@@ -53,11 +53,6 @@ class ApproachGuess:
     q_tracking: Array  # (len(TRACKING_NODES), 7) [rad]
     clearance_m: float  # smallest distance of its configurations [m]
 
-    @property
-    def decision_vector(self) -> Array:
-        """``[params, base offset, start delay, tracking nodes]``: the approach NLP's ``w`` without extras."""
-        return np.concatenate([self.params, self.base_offset_m, [self.start_delay_s], self.q_tracking.ravel()])
-
 
 class MeetingOutcome(Enum):
     """What the scan found at one candidate meeting time."""

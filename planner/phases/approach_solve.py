@@ -15,14 +15,14 @@ from numpy.typing import NDArray
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
-from planner.phases.approach_guess import ScanOnDemand, initial_guesses
+from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, initial_guesses
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_parameters import ApproachParameters
 
 Array = NDArray[np.float64]
 
 
-def decision_vector(start: ApproachParameters | ApproachSolution) -> Array:
+def decision_vector(start: ApproachParameters | ApproachSolution | ApproachGuess) -> Array:
     """``w`` without extras, ``[params, base offset, start delay, tracking nodes]``, of a start."""
     return np.concatenate([start.params, start.base_offset_m, [start.start_delay_s], start.q_tracking.ravel()])
 
@@ -51,7 +51,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     n_warm = len(starts)
     for attempt in range(max_starts + n_warm):
         if attempt == len(starts):
-            starts += [g.decision_vector for g in scan.result.guesses[skip_guesses:]]
+            starts += [decision_vector(g) for g in scan.result.guesses[skip_guesses:]]
         if attempt >= len(starts) or (attempt > 0 and time.perf_counter() - t0 > problem.scenario.solver.max_wall_s):
             break
         left = None if max_iterations is None else max_iterations - iterations
@@ -106,7 +106,7 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
     lbw[base] = ubw[base] = (gx, gz)
     result, iterations = None, 0
     for g in initial_guesses(pinned, problem.spline, state, max_starts):
-        result = _solve_once(problem, state, g.decision_vector, tracking_speed_scale, lbw, ubw, cold=True)
+        result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True)
         iterations += result.iterations
         if result.success or time.perf_counter() - t0 > problem.scenario.solver.max_wall_s:
             break
