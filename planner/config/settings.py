@@ -166,12 +166,6 @@ class CostWeights:
     peak_wrench: float
     overscale: float  # robot geometry scale for the distance cost (paper §5)
 
-    @property
-    def is_feasibility(self) -> bool:
-        """True when every weight is 0: the NLPs only look for a feasible point."""
-        return not any((self.manipulability, self.min_distance, self.approach_energy,
-                        self.attitude_disturbance, self.peak_wrench))
-
     @staticmethod
     def read(c: TomlTable) -> CostWeights:
         """The ``[costs]`` table (every weight 0 and ``overscale`` 1 by default)."""
