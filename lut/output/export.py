@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from lut.table.records import plan_costs
 from planner.errors import LutgenError
 from planner.model.rotation import matrix_to_quat
 from planner.model.shapes import Box
-from planner.nlp.costs import approach_energy
 from planner.plan import GraspPlan
 from planner.verify.verifier import VerifyReport
 
@@ -41,12 +41,8 @@ def plan_metrics(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
         "start_delay_s": plan.approach.start_delay_s,
         "base_offset_m": {"x": float(plan.approach.base_offset_m[0]), "z": float(plan.approach.base_offset_m[1])},
         "free_axis_angle_deg": math.degrees(plan.tracking.free_axis_angle_rad),
-        "costs": {
-            "approach_energy_m2": approach_energy(plan.approach.base_offset_m),
-            "min_distance_m": float(np.min(report.min_distance_m)),
-            "peak_grasp_torque_nm": float(np.abs(report.grasp_wrench[:, 3:]).max()),
-            "peak_grasp_force_n": float(np.abs(report.grasp_wrench[:, :3]).max()),
-        },
+        "costs": {**plan_costs(plan, report),
+                  "peak_grasp_force_n": float(np.abs(report.grasp_wrench[:, :3]).max())},
         "collision_pairs": int(report.pair_count),
         "collision_rule": report.collision_rule,
         "checks": checks,

@@ -26,11 +26,18 @@ PARAMETER_KEYS = ("approach_params", "base_offset_m", "start_delay_s", "q_tracki
 MAX_REASON_CHARS = 2000  # a failure reason is cut here: a record stays small
 
 
+def plan_costs(plan: GraspPlan, report: VerifyReport) -> dict[str, float]:
+    """The verified costs a table stores (and a plan file shows): Eq. 16's approach energy [m²], the smallest
+    distance [m], the peak grasp torque [N·m]."""
+    from planner.nlp.costs import approach_energy  # only where a plan exists: a record is read far from CasADi
+
+    return {"approach_energy_m2": approach_energy(plan.approach.base_offset_m),
+            "min_distance_m": float(np.min(report.min_distance_m)),
+            "peak_grasp_torque_nm": float(np.abs(report.grasp_wrench[:, 3:]).max())}
+
+
 def result_from_plan(point: int, plan: GraspPlan, report: VerifyReport) -> PointResult:
     """The result of a solved, verified plan."""
-    costs = {"approach_energy_m2": float(np.dot(plan.approach.base_offset_m, plan.approach.base_offset_m)),
-             "min_distance_m": float(np.min(report.min_distance_m)),
-             "peak_grasp_torque_nm": float(np.abs(report.grasp_wrench[:, 3:]).max())}
     approach = ApproachParameters(params=np.asarray(plan.approach.params, dtype=float),
                                   base_offset_m=np.asarray(plan.approach.base_offset_m, dtype=float),
                                   start_delay_s=float(plan.approach.start_delay_s),
@@ -40,7 +47,8 @@ def result_from_plan(point: int, plan: GraspPlan, report: VerifyReport) -> Point
                        solve_time_s=float(plan.timings_s.get("total_s", np.nan)),
                        iterations=int(plan.approach.iterations + plan.stabilization.iterations),
                        parameters=PlanParameters(approach, np.asarray(plan.stabilization.params, dtype=float)),
-                       free_axis_angle_rad=float(plan.tracking.free_axis_angle_rad), costs=costs,
+                       free_axis_angle_rad=float(plan.tracking.free_axis_angle_rad),
+                       costs=plan_costs(plan, report),
                        margins={name: float(check.margin) for name, check in report.checks.items()})
 
 
