@@ -17,7 +17,7 @@ def phase_time_shift_s(phase_from_deg: float, phase_to_deg: float, rate_deg_s: f
     """Time [s] a flat spin at ``phase_from_deg`` takes to reach ``phase_to_deg`` (mod 360) at ``rate_deg_s``.
 
     The smallest non-negative shift: ``((to - from) mod 360) / rate``, in ``[0, 360 / rate)``; a
-    difference within 1e-9° of a full turn counts as 0. ``rate_deg_s`` must be finite and > 0.
+    difference within :data:`PHASE_SNAP_DEG` of a full turn counts as 0. ``rate_deg_s`` must be finite and > 0.
     """
     rate = float(rate_deg_s)
     if not (math.isfinite(rate) and rate > 0):
@@ -25,7 +25,7 @@ def phase_time_shift_s(phase_from_deg: float, phase_to_deg: float, rate_deg_s: f
     d = (float(phase_to_deg) - float(phase_from_deg)) % 360.0
     if not math.isfinite(d):
         raise ValueError(f"phases must be finite, got {phase_from_deg!r}, {phase_to_deg!r}")
-    if d > 360.0 - 1e-9:
+    if d > 360.0 - PHASE_SNAP_DEG:
         d = 0.0
     return d / rate
 
