@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import OdeSolution, solve_ivp
 
-from planner.model.quaternion_rows import quat_exp_pure_rows, quat_multiply_rows, quats_to_matrices
+from planner.model.quaternion_rows import quat_exp_pure_rows, quats_to_matrices
 from planner.model.rotation import quat_multiply
 from planner.model.target_state import TargetState
 from planner.model.target_validation import frozen_copy, validate_inertia, validate_times
@@ -96,7 +96,7 @@ class AttitudeTrajectory:
         if self.dense_solution is None:
             # Constant ω: q(t) = q0 ⊗ exp([0, ω t / 2]) solves q̇ = ½ q ⊗ [0, ω] exactly.
             half_rotation_body = 0.5 * times[:, None] * omega0_body[None, :]
-            q_world_body = quat_multiply_rows(q0_world_body[None, :], quat_exp_pure_rows(half_rotation_body))
+            q_world_body = quat_multiply(q0_world_body[None, :], quat_exp_pure_rows(half_rotation_body))
             omega_body = np.broadcast_to(omega0_body, (times.size, 3)).copy()
             return q_world_body, omega_body
         if times.size == 0:

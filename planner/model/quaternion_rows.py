@@ -1,24 +1,10 @@
-"""Quaternion operations on stacks of rows ((n, 4) ``[w, x, y, z]``): :mod:`planner.model.rotation` works on one."""
+"""Quaternion operations on stacks of rows ((n, 4) ``[w, x, y, z]``); the product of stacks is
+:func:`planner.model.rotation.quat_multiply`."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-
-
-def quat_multiply_rows(q1: NDArray[np.float64], q2: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Row-wise Hamilton product of broadcastable (..., 4) ``[w, x, y, z]`` arrays."""
-    w1, x1, y1, z1 = np.moveaxis(q1, -1, 0)
-    w2, x2, y2, z2 = np.moveaxis(q2, -1, 0)
-    return np.stack(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ],
-        axis=-1,
-    )
 
 
 def quats_to_matrices(q_wxyz: NDArray[np.float64]) -> NDArray[np.float64]:

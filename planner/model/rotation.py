@@ -18,15 +18,15 @@ def skew(v: ArrayLike) -> NDArray[np.float64]:
 
 
 def quat_multiply(q1: ArrayLike, q2: ArrayLike) -> NDArray[np.float64]:
-    """Hamilton product ``q1 ⊗ q2`` of ``[w, x, y, z]`` quaternions."""
-    w1, x1, y1, z1 = np.asarray(q1, dtype=float)
-    w2, x2, y2, z2 = np.asarray(q2, dtype=float)
-    return np.array([
+    """Hamilton product ``q1 ⊗ q2`` of ``[w, x, y, z]`` quaternions; stacks (..., 4) broadcast row-wise."""
+    w1, x1, y1, z1 = np.moveaxis(np.asarray(q1, dtype=float), -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(np.asarray(q2, dtype=float), -1, 0)
+    return np.stack([
         w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
         w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
         w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
         w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ])
+    ], axis=-1)
 
 
 def quat_to_matrix(q: ArrayLike) -> NDArray[np.float64]:
