@@ -33,6 +33,7 @@ from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import Scenario
 from planner.model.compound import GEOMETRY_SIZE, GraspGeometry, grasp_geometry
 from planner.model.freefloating import quat_to_rotation_sym
+from planner.model.robot import RobotModel
 from planner.nlp import constraint_backoff
 from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.feasibility_stop import FeasibilityStop
@@ -48,7 +49,7 @@ from planner.phases.stabilization_dynamics import (
 )
 
 __all__ = ["JACOBIAN_FIRST_PENALTY", "GraspState", "InnerFunctions", "StabilizationProblem", "StabilizationSolution",
-           "grasp_momentum_world", "stabilization_spline", "via_point_times", "wrench_function"]
+           "grasp_momentum_world", "smooth_stop_params", "stabilization_spline", "via_point_times", "wrench_function"]
 
 Array = NDArray[np.float64]
 
@@ -102,6 +103,32 @@ def via_point_times(spline: UniformCubicBSpline, count: int) -> NDArray[np.float
     uniform = T * np.arange(1, count + 1) / count
     knots = spline.segment_duration_s * np.arange(1, spline.n_segments)
     return np.unique(np.round(np.concatenate([uniform, knots]), 9))
+
+
+def smooth_stop_params(spline: UniformCubicBSpline, robot: RobotModel, grasp: GraspState) -> Array:
+    """Eq. 24 parameters of a smooth deceleration ``q̇(t) = q̇_in (1 − smoothstep(t/T_d))``.
+
+    T_d ≤ t_f³ is short enough that no joint travels past 80 % of its remaining room to the limit
+    (each joint moves q̇_in·T_d/2 while decelerating); the NLP then reshapes the profile.
+    """
+    T = spline.duration_s
+    room = np.where(grasp.qd > 0, robot.q_max - grasp.q, grasp.q - robot.q_min)
+    with np.errstate(divide="ignore"):
+        limits = np.where(np.abs(grasp.qd) > 1e-9, 2 * 0.8 * np.maximum(room, 0.0) / np.abs(grasp.qd), np.inf)
+    T_d = float(np.clip(limits.min(), 0.2 * T, T))
+    times = np.linspace(0.0, T, 4 * spline.n_vertices)
+    s = np.minimum(times / T_d, 1.0)
+    # ∫₀ˢ (1 − smoothstep5) ds, closed form, times T_d
+    integral = s - (2.5 * s**4 - 3 * s**5 + s**6)
+    q_path = grasp.q + np.outer(integral * T_d, grasp.qd)
+    W = spline.weights(times)
+    m = spline.n_free_per_joint
+    n = len(grasp.q)
+    offset = stabilization_vertices(spline, grasp.q, grasp.qd, grasp.qdd, np.zeros(m * n))
+    G = np.stack([stabilization_vertices(spline, np.zeros(1), np.zeros(1), np.zeros(1), np.eye(m)[j]).ravel()
+                  for j in range(m)], axis=1)
+    P, *_ = np.linalg.lstsq(W @ G, q_path - W @ offset, rcond=None)
+    return P.reshape(-1)
 
 
 # The feasibility stop's tolerance on the constraint values: IPOPT's iterates sit on the boundary of
@@ -240,30 +267,8 @@ class StabilizationProblem:
         return cost + 1e-6 * ca.sumsqr(P), w_extra
 
     def initial_params(self, grasp: GraspState) -> Array:
-        """Eq. 24 parameters of a smooth deceleration ``q̇(t) = q̇_in (1 − smoothstep(t/T_d))``.
-
-        T_d ≤ t_f³ is short enough that no joint travels past 80 % of its remaining room to the limit
-        (each joint moves q̇_in·T_d/2 while decelerating); the NLP then reshapes the profile.
-        """
-        T = self.spline.duration_s
-        rob = self.scenario.robot
-        room = np.where(grasp.qd > 0, rob.q_max - grasp.q, grasp.q - rob.q_min)
-        with np.errstate(divide="ignore"):
-            limits = np.where(np.abs(grasp.qd) > 1e-9, 2 * 0.8 * np.maximum(room, 0.0) / np.abs(grasp.qd), np.inf)
-        T_d = float(np.clip(limits.min(), 0.2 * T, T))
-        times = np.linspace(0.0, T, 4 * self.spline.n_vertices)
-        s = np.minimum(times / T_d, 1.0)
-        # ∫₀ˢ (1 − smoothstep5) ds, closed form, times T_d
-        integral = s - (2.5 * s**4 - 3 * s**5 + s**6)
-        q_path = grasp.q + np.outer(integral * T_d, grasp.qd)
-        W = self.spline.weights(times)
-        m = self.spline.n_free_per_joint
-        n = len(grasp.q)
-        offset = stabilization_vertices(self.spline, grasp.q, grasp.qd, grasp.qdd, np.zeros(m * n))
-        G = np.stack([stabilization_vertices(self.spline, np.zeros(1), np.zeros(1), np.zeros(1), np.eye(m)[j]).ravel()
-                      for j in range(m)], axis=1)
-        P, *_ = np.linalg.lstsq(W @ G, q_path - W @ offset, rcond=None)
-        return P.reshape(-1)
+        """:func:`smooth_stop_params` of this problem's spline: the heuristic start of a cold solve."""
+        return smooth_stop_params(self.spline, self.scenario.robot, grasp)
 
     def coarse_problem(self) -> StabilizationProblem:
         """The same NLP with ``coarse_via_points`` uniform via points and RK4 steps (built on first use)."""
