@@ -57,7 +57,7 @@ def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_p
 
 
 def _screened(max_iterations: int | None, screen_iterations: int | None) -> int | None:
-    """The coarse solve's iteration budget: the whole budget, or the screen's if smaller."""
+    """One solve's iteration budget: what is left of the whole budget, or the screen's if smaller (None: neither)."""
     budgets = [b for b in (max_iterations, screen_iterations) if b is not None]
     return min(budgets) if budgets else None
 
