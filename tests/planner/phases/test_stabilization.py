@@ -21,12 +21,15 @@ from planner.model.compound import compound_robot
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.rotation import quat_to_matrix
 from planner.nlp.outcome import SolveOutcome
+from planner.nlp.phase_spline import stabilization_vertices
 from planner.phases import stabilization_solve
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
     StabilizationSolution,
     grasp_momentum_world,
+    smooth_stop_params,
+    stabilization_spline,
 )
 from planner.phases.stabilization_solve import solve_stabilization
 from planner.plan_grasps import SCREEN_BUDGET, STABILIZATION_BUDGET
@@ -209,3 +212,16 @@ def test_the_screen_sets_aside_the_grasp_the_nlp_cannot_brake_and_passes_the_one
     assert ok.peak_torque_nm <= problem.scenario.limits.grasp_torque_max_nm and ok.min_distance_m > 0.02
     plain = solve_stabilization(problem, braked, max_iterations=STABILIZATION_BUDGET)
     np.testing.assert_array_equal(ok.params, plain.params)
+
+
+def test_the_smooth_stop_of_a_grasp_at_rest_stays_put_and_one_of_a_moving_grasp_stops(scenario_II, grasp):
+    """The cold start's heuristic (no NLP): a grasp at rest (the degenerate case, no joint moving) keeps its
+    configuration; a moving grasp's stop never passes a joint limit."""
+    spline, robot = stabilization_spline(scenario_II), scenario_II.robot
+    t = np.linspace(0.0, spline.duration_s, 200)
+    at_rest = replace(grasp, qd=np.zeros(7), qdd=np.zeros(7))
+    V = stabilization_vertices(spline, at_rest.q, at_rest.qd, at_rest.qdd, smooth_stop_params(spline, robot, at_rest))
+    np.testing.assert_allclose(spline.evaluate(V, t), np.tile(at_rest.q, (len(t), 1)), rtol=0, atol=1e-12)
+    V = stabilization_vertices(spline, grasp.q, grasp.qd, grasp.qdd, smooth_stop_params(spline, robot, grasp))
+    q = spline.evaluate(V, t)
+    assert (q >= robot.q_min).all() and (q <= robot.q_max).all()
