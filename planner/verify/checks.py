@@ -114,17 +114,13 @@ class CollisionSamples:
     pair_min_distance_m: dict[str, float]  # "A-B" -> min over the samples where it keeps the full margin
 
 
-def collision_check(sc: Scenario, layout: SceneLayout, chaser: PinKinematics, t: Array, x: Array, q: Array,
+def collision_check(sc: Scenario, layout: SceneLayout, T_bodies: dict[str, Array], t: Array,
                     phase_index: Array, phases: dict[str, tuple[float, float]], sel: Array,
                     T_target: Array) -> tuple[CheckResult, CollisionSamples]:
     """Signed distance of every scene pair at the verified samples against the handle-contact rule
-    (:mod:`planner.collision.contact_rule`), by verify's own engine (:mod:`planner.verify.collision`)."""
-    frames: dict[str, list[Array]] = {name: [] for name in sc.robot.body_names}
-    for k in sel:
-        chaser.forward(x[k], q[k])
-        for name, T in chaser.body_poses().items():
-            frames[name].append(T)
-    poses = {name: np.array(Ts) for name, Ts in frames.items()} | {TARGET_BODY: T_target[sel]}
+    (:mod:`planner.collision.contact_rule`), by verify's own engine (:mod:`planner.verify.collision`).
+    ``T_bodies``: the chaser's body poses at the verified samples ``sel``."""
+    poses = T_bodies | {TARGET_BODY: T_target[sel]}
     sweep = sweep_pairs(layout, poses)
     margin = sc.limits.collision_margin_m
     required = required_clearances(layout, margin, t[sel], phase_index[sel], phases, sc.approach.pregrasp_backoff_m)

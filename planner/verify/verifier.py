@@ -140,7 +140,7 @@ def verify(plan: VerifiablePlan, step_s: float = DEFAULT_STEP_S) -> VerifyReport
         raise ValueError(f"step_s must be in (0, {MAX_STEP_S}] s, got {step_s!r}")
     s = _samples(plan)
     sel = select_samples(s.t, sorted({float(b) for span in plan.phases.values() for b in span}), step_s)
-    w = _world(plan, s)
+    w = _world(plan, s, sel)
     checks, contact, momentum, wrench = _run_checks(plan, s, w, sel)
     violations = [f"{c.name}: {c.value:.6g} {c.unit} vs limit {c.limit:.6g} {c.unit} (margin {c.margin:.3g}), "
                   f"{c.where}" for c in checks.values() if not c.passed]
@@ -204,10 +204,11 @@ class _World:
     T_free: Array  # the target moving torque-free
     T_attached: Array  # the target held by the gripper
     T_target: Array  # free up to the grasp, attached after it
+    T_bodies: dict[str, Array]  # the chaser's bodies at the verified samples only, (len(sel), 4, 4) each
     layout: SceneLayout  # the scene's collision bodies and pairs
 
 
-def _world(plan: VerifiablePlan, s: _Samples) -> _World:
+def _world(plan: VerifiablePlan, s: _Samples, sel: Array) -> _World:
     """Poses of the gripper and the target at every stored sample, by verify's own models."""
     sc = plan.scenario
     motion = sc.target.motion(plan.target_state, float(s.t[-1]) + 1.0)
@@ -217,15 +218,20 @@ def _world(plan: VerifiablePlan, s: _Samples) -> _World:
     compound = PinKinematics(compound_robot(sc, T_ee_target))
     n = len(s.t)
     T_ee = np.empty((n, 4, 4))
+    verified = set(sel.tolist())
+    bodies: dict[str, list[Array]] = {name: [] for name in sc.robot.body_names}
     for k in range(n):
         chaser.forward(s.x[k], s.q[k])
         T_ee[k] = chaser.ee_pose()
+        if k in verified:
+            for name, T in chaser.body_poses().items():
+                bodies[name].append(T)
     T_free = np.tile(np.eye(4), (n, 1, 1))
     T_free[:, :3, :3], T_free[:, :3, 3] = motion.body_pose(s.t)
     T_attached = T_ee @ T_ee_target
     T_target = np.where((s.t > s.t_grasp + TIME_TOL_S)[:, None, None], T_attached, T_free)
     return _World(motion, chaser, compound, T_body_grasp, T_ee, T_free, T_attached, T_target,
-                  scene_layout(sc.robot, sc.target))
+                  {name: np.array(Ts) for name, Ts in bodies.items()}, scene_layout(sc.robot, sc.target))
 
 
 def _run_checks(plan: VerifiablePlan, s: _Samples, w: _World,
@@ -237,7 +243,7 @@ def _run_checks(plan: VerifiablePlan, s: _Samples, w: _World,
     checks: dict[str, CheckResult] = {}
     checks.update(joint_checks(robot, t, q, qd, phase_index))
     checks["joint_rate_consistency"] = rate_consistency_check(robot, t, q, qd, phase_index, segments, sel)
-    checks["collision"], contact = collision_check(sc, w.layout, w.chaser, t, x, q, phase_index, plan.phases, sel,
+    checks["collision"], contact = collision_check(sc, w.layout, w.T_bodies, t, phase_index, plan.phases, sel,
                                                    w.T_target)
     mom, momentum = momentum_checks(w.chaser, w.compound, w.motion, t, x, q, qd, phase_index, segments, sel,
                                     s.k_pre, s.k_post)
