@@ -21,6 +21,7 @@ from planner.collision.layout import CollisionBody, default_pairs
 from planner.collision.scene_distances import CollisionScene, PairDistance, distance_gradient
 from planner.model.rotation import axis_angle_to_matrix, skew
 from planner.model.shapes import Box, Capsule, PlacedShape, make_transform
+from tests.support.distance_oracle import segment_closest_points
 
 Array = NDArray[np.float64]
 I3 = np.eye(3)
@@ -33,27 +34,8 @@ BOX_TOL_M = 1e-9
 
 # ----------------------------------------------------------------------------------------------- helpers
 def closest_points_segment_segment(p0a, p1a, p0b, p1b) -> tuple[Array, Array]:
-    """Reference closest points of two segments (Ericson, RTCD §5.1.9), scalar and written for the tests."""
-    P0a, P0b = np.asarray(p0a, dtype=float), np.asarray(p0b, dtype=float)
-    da, db = np.asarray(p1a, dtype=float) - P0a, np.asarray(p1b, dtype=float) - P0b
-    r = P0a - P0b
-    a, e, f = float(da @ da), float(db @ db), float(db @ r)
-    if a <= 1e-300 and e <= 1e-300:
-        return P0a, P0b
-    if a <= 1e-300:
-        return P0a, P0b + min(max(f / e, 0.0), 1.0) * db
-    c = float(da @ r)
-    if e <= 1e-300:
-        return P0a + min(max(-c / a, 0.0), 1.0) * da, P0b
-    b = float(da @ db)
-    denom = a * e - b * b
-    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-14 * a * e else 0.0
-    t = (b * s + f) / e
-    if t < 0.0:
-        t, s = 0.0, min(max(-c / a, 0.0), 1.0)
-    elif t > 1.0:
-        t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
-    return P0a + s * da, P0b + t * db
+    """Reference closest points of two segments: the distance oracle's (Ericson, RTCD §5.1.9)."""
+    return segment_closest_points(*(np.asarray(p, dtype=float) for p in (p0a, p1a, p0b, p1b)))
 
 
 def capsule_capsule_distance(p0a, p1a, ra: float, p0b, p1b, rb: float) -> float:
