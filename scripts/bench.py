@@ -12,10 +12,16 @@ Writes JSON (``--out``, default ``out/bench.json``) and prints a digest table. T
 ``{"median", "min", "max", "runs"}`` (plus ``"p95"`` for query latencies) in the unit the key names
 (``_us`` µs, ``_ms`` ms, ``_s`` s). A part a mode does not measure keeps its keys, with null values and
 ``"skipped": reason``. Sections (one module each in ``scripts/bench_sections/``): ``machine``,
-``primitives``, ``query``, ``build``, ``planner``, ``baseline``. Seeds are fixed (``--seed``).
+``primitives``, ``query``, ``build``, ``planner``, ``baseline``, ``coverage``. Seeds are fixed (``--seed``).
 
 The full run refines every query state whose interpolated plan fails verification, each within
 ``--refine-budget-s`` (default 100 s): with a table that interpolates poorly that adds up to 50 × the budget.
+
+``coverage`` (issue 20) runs ``--coverage-states`` seeded states (default 20; ``--quick`` 1) of each of four kinds
+(scenario I / II × flat spin / general tumble) through one ``lutgen plan`` process each under the 100 s budget
+(a process still running 30 s past it is killed), and the same states through ``lutgen query`` on the tables of
+``--coverage-tables`` (default ``tables/``): up to 2 × 80 runs of up to 100 s, hours on one core.
+Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``.
 """
 
 from __future__ import annotations
@@ -31,7 +37,8 @@ from typing import Any
 
 from bench_sections.baseline import baseline
 from bench_sections.builds import builds
-from bench_sections.common import ROOT, Settings, json_safe, settings_for
+from bench_sections.common import ROOT, Settings, coverage_settings, json_safe, settings_for
+from bench_sections.coverage import coverage
 from bench_sections.machine import load_average, machine
 from bench_sections.plans import plans
 from bench_sections.primitives import primitives
@@ -40,8 +47,17 @@ from bench_sections.report import print_report
 
 # JSON key → section; the order they run in (the JSON lists them in the issue's order)
 SECTIONS: dict[str, Callable[[Settings], dict[str, Any]]] = {
-    "primitives": primitives, "query": queries, "build": builds, "baseline": baseline, "planner": plans}
-JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline")
+    "primitives": primitives, "query": queries, "build": builds, "baseline": baseline, "planner": plans,
+    "coverage": coverage}
+JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline", "coverage")
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: an integer ≥ 1."""
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -61,6 +77,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--plan-cap-s", type=float, default=300.0, help="IPOPT wall-time cap (s) per NLP of a plan")
     ap.add_argument("--plan-with-costs", action="store_true",
                     help="also plan with cost terms (the scenario's weights, or the paper's approach costs)")
+    ap.add_argument("--coverage-states", type=positive_int, default=None, metavar="N",
+                    help="coverage: seeded states per kind (default 20; --quick 1; --trim 1 of one kind)")
+    ap.add_argument("--coverage-jobs", type=positive_int, default=1, metavar="N",
+                    help="coverage: processes at a time (default 1; more share the cores and inflate wall times)")
+    ap.add_argument("--coverage-tables", type=Path, default=None, metavar="DIR",
+                    help="coverage: folder of the tables the queries use, matched to each kind by the scenario "
+                         "and grid kind they were built for (default: tables/; --trim: tests/data)")
     ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
                     help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
                          "--out file are kept, so one part can be re-measured after a change")
@@ -110,8 +133,9 @@ def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> d
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    cov = coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables)
     settings = settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s, args.plan_with_costs,
-                            args.refine_budget_s)
+                            args.refine_budget_s, cov)
     only = None
     if args.only is not None:
         only = tuple(name.strip() for name in args.only.split(",") if name.strip())

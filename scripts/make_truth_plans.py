@@ -21,33 +21,12 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from bench_sections.envelope import flat_spin_state, tumble_state
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = 20261201
 MAJOR_AXIS = {"scenario_I": 1, "scenario_II": 2}  # body axis of the largest principal moment
 PLAN_TIMEOUT_S = 300
-Array = np.ndarray
-
-
-def flat_spin_state(rng: np.random.Generator, major: int, rate_range: tuple[float, float]) -> tuple[Array, Array]:
-    """Attitude (wxyz) whose major axis points along (cos α, 0, sin α), any phase; body rates (°/s) about it."""
-    alpha, phase = rng.uniform(0.0, 2 * np.pi), rng.uniform(0.0, 2 * np.pi)
-    axis = np.zeros(3)
-    axis[major] = 1.0
-    to_spin = Rotation.align_vectors([[np.cos(alpha), 0.0, np.sin(alpha)]], [axis])[0]
-    R = to_spin * Rotation.from_rotvec(phase * axis)
-    return _wxyz(R), float(rng.uniform(*rate_range)) * axis
-
-
-def tumble_state(rng: np.random.Generator) -> tuple[Array, Array]:
-    """Uniformly random attitude (wxyz) and body rates uniform in ±4 °/s per axis."""
-    return _wxyz(Rotation.random(random_state=rng)), rng.uniform(-4.0, 4.0, 3)
-
-
-def _wxyz(R: Rotation) -> Array:
-    x, y, z, w = R.as_quat()
-    return np.array([w, x, y, z])
 
 
 def cases(rng: np.random.Generator, table: Path) -> list[dict]:
@@ -55,7 +34,8 @@ def cases(rng: np.random.Generator, table: Path) -> list[dict]:
     out = []
     for scenario, major in MAJOR_AXIS.items():
         for kind in ("flat_spin", "flat_spin", "flat_spin", "tumble", "tumble", "tumble"):
-            q, w = flat_spin_state(rng, major, (1.0, 4.0)) if kind == "flat_spin" else tumble_state(rng)
+            st = flat_spin_state(rng, np.eye(3)[major], (1.0, 4.0)) if kind == "flat_spin" else tumble_state(rng)
+            q, w = st.attitude_wxyz, st.omega_body_deg_s
             out.append({"name": f"plan_{scenario}_{kind}_{len(out)}", "command": "plan", "kind": kind,
                         "scenario": f"configs/scenarios/{scenario}.toml", "attitude_wxyz": q.tolist(),
                         "omega_body_deg_s": w.tolist()})

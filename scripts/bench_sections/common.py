@@ -23,6 +23,21 @@ GOLDEN_TABLE = ROOT / "tests" / "data" / "ci_golden.h5"
 DEMO_TABLE = ROOT / "out" / "demo.h5"  # what scripts/demo builds
 SCENARIOS = ROOT / "configs" / "scenarios"
 FAKE_SOLVER = "tests.support.fake_solver:solve"
+COVERAGE_TABLES = ROOT / "tables"  # where the README's workflow 1 builds the bundled grids' tables
+COVERAGE_BUDGET_S = 100.0  # issue 20: an operator has 100 s from observation to motion
+
+
+@dataclass(frozen=True)
+class CoverageSettings:
+    """The coverage section's sizes: seeded states per kind, which kinds (None: all four), the budget (s) of
+    each plan and query, the hard kill after budget + ``kill_margin_s`` (s), processes at a time, the tables."""
+
+    states: int
+    kinds: tuple[str, ...] | None
+    budget_s: float
+    kill_margin_s: float
+    jobs: int
+    tables: Path
 
 
 @dataclass(frozen=True)
@@ -53,16 +68,29 @@ class Settings:
     baseline_cap_s: float
     baseline_max_iter: int
     baseline_max_delay_s: float | None  # None: the scenario's own start-delay window
+    coverage: CoverageSettings
+
+
+def coverage_settings(quick: bool, trim: bool, states: int | None, jobs: int, tables: Path | None) -> CoverageSettings:
+    """Full: 20 states of each kind (the issue's bar); quick: 1 of each; trim: 1 of one kind, a 2 s budget, the
+    golden table (it proves the code path in seconds: the plan ends over budget)."""
+    if trim:
+        return CoverageSettings(1 if states is None else states, ("scenario_II_flat_spin",), 2.0, 10.0, jobs,
+                                GOLDEN_TABLE.parent if tables is None else tables)
+    default_states = 1 if quick else 20
+    return CoverageSettings(default_states if states is None else states, None, COVERAGE_BUDGET_S, 30.0, jobs,
+                            COVERAGE_TABLES if tables is None else tables)
 
 
 def settings_for(quick: bool, trim: bool, seed: int, plan_runs: int | None, plan_cap_s: float,
-                 plan_with_costs: bool, refine_budget_s: float) -> Settings:
+                 plan_with_costs: bool, refine_budget_s: float, coverage: CoverageSettings) -> Settings:
     """Settings of a full, ``--quick`` or ``--trim`` run (trim implies quick: everything as small as it gets)."""
     full = not (quick or trim)
     table = DEMO_TABLE if full and DEMO_TABLE.is_file() else GOLDEN_TABLE
     # a 30 s start-delay window scans a third of the meeting times and, for scenario II's default state,
     # leads IPOPT to the same solution as the scenario's 90 s window
-    common = {"seed": seed, "query_table": table, "plan_cap_s": plan_cap_s, "plan_with_costs": plan_with_costs}
+    common = {"seed": seed, "query_table": table, "plan_cap_s": plan_cap_s, "plan_with_costs": plan_with_costs,
+              "coverage": coverage}
     if full:
         return Settings("full", False, repeats=5, min_calls=1000, min_batch_s=0.5, verify_runs=5, query_states=50,
                         refine_budget_s=refine_budget_s, build_grid=(4, 4), fake_point_s=2.0, build_runs=3,

@@ -101,8 +101,29 @@ def _comparison_rows(b: dict[str, Any], prefix: str) -> list[Row]:
     return rows
 
 
+def _runs(entry: dict[str, Any]) -> str:
+    """``3/5 feasible on time; wall p50 …, p95 … s; reasons …`` of one kind's plans or queries."""
+    if entry.get("runs") is None:
+        return f"skipped: {entry.get('skipped')}"
+    wall, reasons = entry["wall_s"], ", ".join(f"{k} {v}" for k, v in entry["reasons"].items()) or "none"
+    return (f"{entry['feasible_on_time']}/{entry['states']} feasible on time; wall p50 {wall['median']:.1f}, "
+            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; reasons: {reasons}")
+
+
+def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:
+    rows = [(f"{part} {kind}", _runs(c[part][kind])) for part in ("plans", "queries")
+            for kind in c["plans"]]
+    for name, bar in c["bars"].items():
+        verdict = "n/a" if bar["met"] is None else "met" if bar["met"] else "NOT met"
+        op = "≤" if bar["at_most"] else "≥"
+        value = "n/a" if bar["value"] is None else format(bar["value"], ".3g")
+        rows.append((f"bar {name}", f"{value} ({op} {bar['bar']:g}): {verdict}"
+                                    f"{'' if bar['enough_states'] else ' (fewer than 20 states per kind)'}"))
+    return f"coverage ({c['states_per_kind']} states per kind, budget {c['budget_s']:g} s, {c['jobs']} at a time)", rows
+
+
 SECTIONS = {"primitives": _primitives, "query": _query, "build": _build, "planner": _planner,
-            "baseline": _baseline}
+            "baseline": _baseline, "coverage": _coverage}
 
 
 def print_report(result: dict[str, Any]) -> None:

@@ -1,0 +1,150 @@
+"""``coverage`` (issue 20): how much of the paper's envelope gets a verified plan on time — seeded states of four
+kinds through cold ``lutgen plan`` and ``lutgen query`` processes on one core; feasible fractions, p50/p95 wall
+times, failure reasons tallied, each run's record, and the issue's done-when bars."""
+
+from __future__ import annotations
+
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench_sections.common import ROOT, Settings, load_scenario_named, relative, skipped, stats_p95
+from bench_sections.coverage_runs import plan_takes_budget, run_cli, run_record, state_args
+from bench_sections.coverage_tables import find_tables
+from bench_sections.envelope import (
+    FLAT_SPIN_RATE_DEG_S,
+    TUMBLE_RATE_MAX_DEG_S,
+    EnvelopeState,
+    flat_spin_state,
+    major_axis_body,
+    tumble_state,
+)
+
+SEED_SALT = 20  # the coverage states' seed is (--seed, issue 20, kind)
+SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "over_budget", "killed",
+                "runs")
+PLAN_P95_BAR_S, QUERY_P95_BAR_S, QUERY_FEASIBLE_BAR = 60.0, 30.0, 0.98
+BAR_STATES = 20  # the issue measures its bars on ≥ 20 states per kind
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One of the issue's four kinds of states: a scenario and a motion (``flat_spin`` or ``tumble``)."""
+
+    scenario: str
+    motion: str
+    feasible_bar: float  # the cold plans' feasible fraction the issue asks of this kind
+
+    @property
+    def name(self) -> str:
+        return f"{self.scenario}_{self.motion}"
+
+
+KINDS = (Kind("scenario_I", "flat_spin", 0.95), Kind("scenario_II", "flat_spin", 0.90),
+         Kind("scenario_I", "tumble", 0.95), Kind("scenario_II", "tumble", 0.90))
+
+
+def kind_states(kind: Kind, n: int, seed: int) -> list[EnvelopeState]:
+    """The first ``n`` seeded states of ``kind`` (the first ``n`` of a longer run are the same states)."""
+    rng = np.random.default_rng([seed, SEED_SALT, KINDS.index(kind)])
+    if kind.motion == "tumble":
+        return [tumble_state(rng) for _ in range(n)]
+    axis = major_axis_body(load_scenario_named(kind.scenario).target.inertia_body_kg_m2)
+    return [flat_spin_state(rng, axis) for _ in range(n)]
+
+
+def summary(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Feasible-on-time fraction, wall-time statistics with p95 (s), reasons tallied, and the records."""
+    ok = sum(r["feasible_on_time"] for r in records)
+    tally = Counter(reason["reason"] for r in records for reason in r["reasons"])
+    return {"states": len(records), "feasible_on_time": ok, "feasible_fraction": ok / len(records),
+            "wall_s": stats_p95([r["wall_s"] for r in records]), "reasons": dict(tally.most_common()),
+            "over_budget": sum(any(x["reason"] == "over budget" for x in r["reasons"]) for r in records),
+            "killed": sum(r["exit_code"] is None for r in records), "runs": records}
+
+
+def run_all(jobs: list[list[str]], settings: Settings) -> list[dict[str, Any]]:
+    """Each command line as its own process, ``settings.coverage.jobs`` at a time, in order."""
+    c = settings.coverage
+
+    def one(args: list[str]) -> dict[str, Any]:
+        return run_record(args, run_cli(args, c.budget_s + c.kill_margin_s), c.budget_s)
+
+    with ThreadPoolExecutor(max(1, c.jobs)) as pool:
+        return list(pool.map(one, jobs))
+
+
+def plan_args(kind: Kind, state: EnvelopeState, budget_s: float) -> list[str]:
+    budget = ["--budget-s", f"{budget_s:g}"] if plan_takes_budget() else []
+    return ["plan", f"configs/scenarios/{kind.scenario}.toml", *state_args(state), *budget]
+
+
+def query_args(table: str, state: EnvelopeState, budget_s: float) -> list[str]:
+    return ["query", table, *state_args(state), "--budget-s", f"{budget_s:g}"]
+
+
+def cli_path(path: Path) -> str:
+    """A table as the command line names it: relative to the repository (where the processes run) if inside it."""
+    path = path.resolve()
+    return path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else str(path)
+
+
+def _bar(value: float | None, bar: float, at_most: bool, enough_states: bool) -> dict[str, Any]:
+    met = None if value is None else (value <= bar if at_most else value >= bar)
+    return {"value": value, "bar": bar, "at_most": at_most, "met": met, "enough_states": enough_states}
+
+
+def bars(plans: dict[str, Any], queries: dict[str, Any], states: int) -> dict[str, Any]:
+    """The issue's done-when bars: value, bar, met (None: not measured), and whether ≥ 20 states per kind."""
+    enough = states >= BAR_STATES
+    out: dict[str, Any] = {}
+    for kind in KINDS:
+        p = plans[kind.name]
+        out[f"plan_feasible_{kind.name}"] = _bar(p["feasible_fraction"], kind.feasible_bar, False, enough)
+        p95 = p["wall_s"]["p95"] if p["wall_s"] else None
+        out[f"plan_p95_wall_s_{kind.name}"] = _bar(p95, PLAN_P95_BAR_S, True, enough)
+    measured = [plans[k.name] for k in KINDS if plans[k.name]["runs"]]
+    out["plans_over_budget"] = _bar(sum(p["over_budget"] for p in measured) if measured else None, 0, True, enough)
+    answered = [r for k in KINDS if queries[k.name]["runs"] for r in queries[k.name]["runs"]]
+    fraction = sum(r["feasible_on_time"] for r in answered) / len(answered) if answered else None
+    p95 = float(np.percentile([r["wall_s"] for r in answered], 95)) if answered else None
+    all_kinds = all(queries[k.name]["runs"] for k in KINDS)
+    out["query_feasible_all_kinds"] = _bar(fraction, QUERY_FEASIBLE_BAR, False, enough and all_kinds)
+    out["query_p95_wall_s_all_kinds"] = _bar(p95, QUERY_P95_BAR_S, True, enough and all_kinds)
+    return out
+
+
+def coverage(settings: Settings) -> dict[str, Any]:
+    """The whole section."""
+    c = settings.coverage
+    tables, table_notes = find_tables(c.tables, [(k.name, k.scenario, k.motion) for k in KINDS])
+    plans: dict[str, Any] = {}
+    queries: dict[str, Any] = {"tables_dir": relative(c.tables), "tables": table_notes}
+    for kind in KINDS:
+        if c.kinds is not None and kind.name not in c.kinds:
+            plans[kind.name] = queries[kind.name] = skipped(f"--trim: only {', '.join(c.kinds)}", SUMMARY_KEYS)
+            continue
+        states = kind_states(kind, c.states, settings.seed)
+        plans[kind.name] = summary(run_all([plan_args(kind, s, c.budget_s) for s in states], settings))
+        table = tables.get(kind.name)
+        if table is None:
+            queries[kind.name] = skipped(f"no table for {kind.name} in {relative(c.tables)}/", SUMMARY_KEYS)
+            continue
+        queries[kind.name] = {"table": relative(table),
+                              **summary(run_all([query_args(cli_path(table), s, c.budget_s) for s in states],
+                                                settings))}
+    return {"states_per_kind": c.states, "seed": [settings.seed, SEED_SALT], "budget_s": c.budget_s,
+            "kill_after_s": c.budget_s + c.kill_margin_s, "jobs": c.jobs, "plan_budget_option": plan_takes_budget(),
+            "envelope": {"flat_spin": f"spin about the target's major axis (from its inertia) along (cos α, 0, sin α) "
+                                      f"in O, α and phase uniform over the full turn, |ω| uniform in "
+                                      f"{FLAT_SPIN_RATE_DEG_S[0]:g}–{FLAT_SPIN_RATE_DEG_S[1]:g} °/s",
+                         "tumble": f"uniformly random attitude, body rates uniform in ±{TUMBLE_RATE_MAX_DEG_S:g} °/s "
+                                   "per body axis"},
+            "notes": "one process per state (planner build and verification inside its wall time), OMP_NUM_THREADS=1; "
+                     "feasible on time = exit 0 within the budget; a run still going at kill_after_s is killed and "
+                     "counted over budget; jobs > 1 runs processes side by side and inflates wall times",
+            "plans": plans, "queries": queries, "bars": bars(plans, queries, c.states)}
