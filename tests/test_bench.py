@@ -1,11 +1,13 @@
-"""``scripts/bench.py --quick --trim`` runs end to end and its JSON carries every figure of issue 6.
+"""``scripts/bench.py --quick --trim`` runs end to end and its JSON carries every figure of issues 6 and 20.
 
 Structure only: the timings are the benchmark's business and never asserted here; but every measured
 number must be finite and positive, and a part a mode does not measure must keep its keys and say why.
+The coverage section's pieces (envelope states, failure reasons, tables, bars) are checked on their own too.
 """
 
 from __future__ import annotations
 
+import gzip
 import json
 import math
 import os
@@ -14,9 +16,17 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))  # the benchmark's sections are scripts, not a package
+
+from bench_sections import coverage, coverage_tables  # noqa: E402
+from bench_sections.coverage_runs import CliRun, failure_reasons, run_record  # noqa: E402
+from bench_sections.envelope import flat_spin_state, major_axis_body, tumble_state, wxyz  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
+
 LIBRARIES = ("numpy", "scipy", "pin", "casadi", "python-fcl", "h5py", "joblib", "distributed", "lutgen")
 PLANNER_KEYS = ("approach_s", "tracking_s", "stabilization_s", "total_s", "planner_build_s", "ipopt_iterations",
                 "feasible", "solver_status", "cost_weights")
@@ -85,12 +95,12 @@ def _walk_skips(node: Any, where: str = "") -> None:
 
 def test_every_section_is_there_and_every_skip_says_why(run):
     bench, stdout = run
-    assert list(bench) == ["machine", "primitives", "query", "build", "planner", "baseline", "wall_s"]
+    assert list(bench) == ["machine", "primitives", "query", "build", "planner", "baseline", "coverage", "wall_s"]
     _walk_skips(bench)
-    for section in ("primitives", "query", "build", "planner", "baseline"):
+    for section in ("primitives", "query", "build", "planner", "baseline", "coverage"):
         assert _positive(bench[section]["section_wall_s"]), section
     # the readable table names every section
-    for title in ("lutgen bench", "primitives", "query", "build", "planner", "baseline", "wrote"):
+    for title in ("lutgen bench", "primitives", "query", "build", "planner", "baseline", "coverage", "wrote"):
         assert title in stdout, title
 
 
@@ -175,9 +185,167 @@ def test_only_reruns_the_named_section_and_keeps_the_others(run_path, tmp_path):
     proc = _bench(out, "--only", "primitives")
     assert proc.returncode == 0, proc.stderr[-4000:]
     after = json.loads(out.read_text())
-    for section in ("query", "build", "planner", "baseline", "wall_s"):
+    for section in ("query", "build", "planner", "baseline", "coverage", "wall_s"):
         assert after[section] == before[section], section
     assert after["machine"]["sections_rerun"] == ["primitives"]
     assert after["primitives"]["section_wall_s"] != before["primitives"]["section_wall_s"]  # measured again
     bad = _bench(out, "--only", "primitivs")
     assert bad.returncode == 2 and "primitivs" in bad.stderr
+
+
+# ---- coverage (issue 20) ------------------------------------------------------------------------------------
+
+KIND_NAMES = ("scenario_I_flat_spin", "scenario_II_flat_spin", "scenario_I_tumble", "scenario_II_tumble")
+SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "over_budget", "killed",
+                "runs")
+RECORD_KEYS = ("command", "exit_code", "wall_s", "feasible_on_time", "reasons", "notes", "source", "violations",
+               "solver", "start_delay_s", "free_axis_angle_deg", "last_line")
+
+
+def _assert_summary(entry: dict[str, Any], command: str, what: str) -> None:
+    assert set(SUMMARY_KEYS) <= entry.keys(), what
+    runs = entry["runs"]
+    assert entry["states"] == len(runs) == 1, what
+    _assert_timing(entry["wall_s"], what, p95=True)
+    assert entry["feasible_on_time"] == sum(r["feasible_on_time"] for r in runs), what
+    assert entry["feasible_fraction"] == entry["feasible_on_time"] / entry["states"], what
+    tally: dict[str, int] = {}
+    for r in runs:
+        assert set(RECORD_KEYS) <= r.keys(), what
+        assert r["command"].startswith(f"OMP_NUM_THREADS=1 lutgen {command} ") and "--attitude " in r["command"]
+        assert r["exit_code"] in (0, 2, None), (what, r)  # 1 (bad input) or 64 (usage) would be a bug here
+        assert r["feasible_on_time"] == (not r["reasons"]), (what, r)
+        assert _positive(r["wall_s"]) and isinstance(r["notes"], list), what
+        for reason in r["reasons"]:
+            tally[reason["reason"]] = tally.get(reason["reason"], 0) + 1
+    assert entry["reasons"] == tally, what
+    assert entry["killed"] == sum(r["exit_code"] is None for r in runs), what
+
+
+def test_coverage_plans_queries_and_bars_keep_their_keys(bench):
+    c = bench["coverage"]
+    assert c["states_per_kind"] == 1 and c["budget_s"] == 2.0 and c["kill_after_s"] > c["budget_s"]
+    assert isinstance(c["plan_budget_option"], bool) and c["jobs"] == 1
+    assert c["queries"]["tables"] == ["tests/data/ci_golden.h5: scenario_II flat_spin"]
+    for name in KIND_NAMES:
+        if name == "scenario_II_flat_spin":  # --trim runs this kind only, and the golden table answers it
+            _assert_summary(c["plans"][name], "plan configs/scenarios/scenario_II.toml", name)
+            _assert_summary(c["queries"][name], "query tests/data/ci_golden.h5", name)
+            assert c["queries"][name]["table"] == "tests/data/ci_golden.h5"
+            continue
+        _assert_skipped(c["plans"][name], SUMMARY_KEYS, name)
+        _assert_skipped(c["queries"][name], SUMMARY_KEYS, name)
+    expected_bars = {*(f"plan_feasible_{k}" for k in KIND_NAMES), *(f"plan_p95_wall_s_{k}" for k in KIND_NAMES),
+                     "plans_over_budget", "query_feasible_all_kinds", "query_p95_wall_s_all_kinds"}
+    assert set(c["bars"]) == expected_bars
+    for name, bar in c["bars"].items():
+        assert bar["enough_states"] is False, name  # 1 state per kind, the issue measures on 20
+        measured = "scenario_II_flat_spin" in name or "all_kinds" in name or name == "plans_over_budget"
+        assert (bar["value"] is not None) == measured and (bar["met"] is None) == (not measured), name
+    assert c["bars"]["plan_feasible_scenario_II_flat_spin"]["bar"] == 0.90
+    assert c["bars"]["plan_feasible_scenario_I_tumble"]["bar"] == 0.95
+
+
+def test_major_axis_is_read_from_the_inertia():
+    for name, axis in (("scenario_I", [0, 1, 0]), ("scenario_II", [0, 0, 1])):  # the paper: body y, body z
+        inertia = coverage.load_scenario_named(name).target.inertia_body_kg_m2
+        assert np.allclose(major_axis_body(inertia), axis, atol=1e-12), name
+    # an inertia not in principal axes: the axis of its largest moment, whatever frame it is written in
+    R = Rotation.from_rotvec([0.3, -0.2, 0.5]).as_matrix()
+    found = major_axis_body(R @ np.diag([1.0, 5.0, 2.0]) @ R.T)
+    assert np.isclose(abs(found @ R[:, 1]), 1.0, atol=1e-12)
+
+
+def test_envelope_states_lie_in_the_envelope():
+    rng = np.random.default_rng(3)
+    axis = np.array([0.0, 0.0, 1.0])
+    for _ in range(200):
+        s = flat_spin_state(rng, axis)
+        assert np.isclose(np.linalg.norm(s.attitude_wxyz), 1.0)
+        w, x, y, z = s.attitude_wxyz
+        world_axis = Rotation.from_quat([x, y, z, w]).apply(axis)
+        assert abs(world_axis[1]) < 1e-12  # the spin axis lies in the orbital x–z plane
+        assert np.allclose(np.cross(s.omega_body_deg_s, axis), 0.0)  # pure spin about the major axis
+        assert 1.0 <= s.omega_body_deg_s @ axis <= 4.0
+        t = tumble_state(rng)
+        assert np.all(np.abs(t.omega_body_deg_s) <= 4.0) and np.isclose(np.linalg.norm(t.attitude_wxyz), 1.0)
+    assert np.allclose(wxyz(Rotation.identity()), [1, 0, 0, 0])
+
+
+def test_coverage_states_are_seeded_and_a_longer_run_starts_with_the_same_states():
+    kind = coverage.KINDS[1]
+    five, three = coverage.kind_states(kind, 5, 7), coverage.kind_states(kind, 3, 7)
+    assert all(np.array_equal(a.attitude_wxyz, b.attitude_wxyz) for a, b in zip(three, five[:3], strict=True))
+    other_kind = coverage.kind_states(coverage.KINDS[0], 3, 7)
+    assert not np.allclose(other_kind[0].attitude_wxyz, three[0].attitude_wxyz)
+    assert not np.allclose(coverage.kind_states(kind, 1, 8)[0].attitude_wxyz, three[0].attitude_wxyz)
+
+
+def test_failure_reasons_name_the_failing_checks_of_a_stored_infeasible_plan():
+    doc = json.loads(gzip.open(ROOT / "tests/data/truth/plan_scenario_II_tumble_10.json.gz", "rt").read())
+    metrics = doc["metrics"]
+    reasons = failure_reasons(CliRun(2, 80.0, "", "INFEASIBLE: …", metrics), budget_s=100.0)
+    # independent reference: the plan's own violation lines start with the check's name
+    assert [r["reason"] for r in reasons] == [v.split(":")[0] for v in metrics["violations"]]
+    by_name = {r["reason"]: r for r in reasons}
+    assert by_name["joint_position"]["phase"] == "stabilization" and by_name["collision"]["phase"] == "tracking"
+    assert by_name["grasp_torque"]["margin"] < 0 and by_name["grasp_torque"]["limit"] == 10.0
+    # the same plan, late: over budget as well
+    late = failure_reasons(CliRun(2, 120.0, "", "", metrics), budget_s=100.0)
+    assert [r["reason"] for r in late][-1] == "over budget" and len(late) == len(reasons) + 1
+    record = run_record(["plan", "s.toml"], CliRun(2, 80.0, "note: made from another grasp\n", "", metrics), 100.0)
+    assert record["notes"][0] == "made from another grasp" and metrics["notes"][0] in record["notes"]
+    assert record["command"] == "OMP_NUM_THREADS=1 lutgen plan s.toml --out plan.json"
+
+
+@pytest.mark.parametrize(("run", "expected"), [
+    (CliRun(0, 30.0, "FEASIBLE\n", "", None), []),
+    (CliRun(0, 100.5, "FEASIBLE\n", "", None), ["over budget"]),  # feasible, but too late to use
+    (CliRun(None, 130.0, "", "built in 3.8 s; solving…", None), ["over budget"]),
+    (CliRun(2, 6.5, "", "planning…\nINFEASIBLE (1.5 s): out of reach: no meeting time\nno plan written: …", None),
+     ["out of reach"]),
+    (CliRun(1, 2.0, "", "error: --attitude: not a unit quaternion", None), ["bad input"]),
+    (CliRun(-11, 9.0, "", "", None), ["exit -11"]),
+])
+def test_failure_reasons_without_a_plan_file(run, expected):
+    reasons = failure_reasons(run, budget_s=100.0)
+    assert [r["reason"] for r in reasons] == expected
+    assert all(r["detail"] for r in reasons)
+
+
+def test_summary_tallies_reasons_and_bars_judge_them():
+    def record(ok: bool, wall: float, *reasons: str) -> dict[str, Any]:
+        return {"feasible_on_time": ok, "wall_s": wall, "exit_code": 0 if ok else 2,
+                "reasons": [{"reason": r} for r in reasons]}
+
+    runs = [record(True, 10.0), record(False, 50.0, "collision", "grasp_torque"), record(False, 70.0, "collision")]
+    s = coverage.summary(runs)
+    assert s["feasible_on_time"] == 1 and s["feasible_fraction"] == 1 / 3 and s["killed"] == 0
+    assert s["reasons"] == {"collision": 2, "grasp_torque": 1} and s["wall_s"]["max"] == 70.0
+    plans = {k.name: coverage.summary([record(True, 10.0)] * 20) for k in coverage.KINDS}
+    late = [record(False, 101.0, "over budget")] * 2
+    plans["scenario_II_tumble"] = coverage.summary([record(True, 10.0)] * 18 + late)
+    queries = {k.name: coverage.skipped("no table", SUMMARY_KEYS) for k in coverage.KINDS}
+    b = coverage.bars(plans, queries, 20)
+    assert b["plan_feasible_scenario_I_tumble"]["met"] is True
+    assert b["plan_feasible_scenario_II_tumble"]["value"] == 0.9 and b["plan_feasible_scenario_II_tumble"]["met"]
+    assert b["plan_p95_wall_s_scenario_II_tumble"]["met"] is False  # p95 of 18 × 10 s and 2 × 101 s
+    assert b["plans_over_budget"]["value"] == 2 and b["plans_over_budget"]["met"] is False
+    assert b["query_feasible_all_kinds"]["met"] is None and b["query_feasible_all_kinds"]["enough_states"] is False
+
+
+def test_tables_are_matched_by_scenario_and_grid_kind(tmp_path, monkeypatch):
+    found, lines = coverage_tables.find_tables(ROOT / "tests" / "data", [(k.name, k.scenario, k.motion)
+                                                                         for k in coverage.KINDS])
+    assert found == {"scenario_II_flat_spin": ROOT / "tests" / "data" / "ci_golden.h5"}
+    assert lines == ["tests/data/ci_golden.h5: scenario_II flat_spin"]
+    (tmp_path / "a_tumble.h5").write_bytes(b"")
+    (tmp_path / "b_broken.h5").write_bytes(b"not hdf5")
+    real = coverage_tables.table_identity
+    monkeypatch.setattr(coverage_tables, "table_identity",
+                        lambda p: ("scenario_I", "tumble") if p.name == "a_tumble.h5" else real(p))
+    found, lines = coverage_tables.find_tables(tmp_path, [(k.name, k.scenario, k.motion) for k in coverage.KINDS])
+    # a flat spin is a tumble: scenario I's tumble table answers both its kinds; scenario II has none
+    assert found == {"scenario_I_flat_spin": tmp_path / "a_tumble.h5", "scenario_I_tumble": tmp_path / "a_tumble.h5"}
+    assert lines[0].endswith("a_tumble.h5: scenario_I tumble") and "refused" in lines[1]
+    assert coverage_tables.find_tables(tmp_path / "absent", []) == ({}, [])

@@ -4,6 +4,7 @@ times, failure reasons tallied, each run's record, and the issue's done-when bar
 
 from __future__ import annotations
 
+import sys
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -72,7 +73,11 @@ def run_all(jobs: list[list[str]], settings: Settings) -> list[dict[str, Any]]:
     c = settings.coverage
 
     def one(args: list[str]) -> dict[str, Any]:
-        return run_record(args, run_cli(args, c.budget_s + c.kill_margin_s), c.budget_s)
+        record = run_record(args, run_cli(args, c.budget_s + c.kill_margin_s), c.budget_s)
+        reasons = ", ".join(r["reason"] for r in record["reasons"]) or "feasible"
+        print(f"coverage: {args[0]} {args[1]} exit {record['exit_code']} {record['wall_s']:.1f} s: {reasons}",
+              file=sys.stderr, flush=True)  # a long section shows its progress
+        return record
 
     with ThreadPoolExecutor(max(1, c.jobs)) as pool:
         return list(pool.map(one, jobs))

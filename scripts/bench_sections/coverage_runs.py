@@ -82,8 +82,10 @@ def failed_checks(metrics: dict[str, Any]) -> list[dict[str, Any]]:
     for name, check in metrics["checks"].items():
         if check["passed"]:
             continue
-        phase = PHASE.search(check["where"] or "")
-        out.append({"reason": name, "phase": phase.group(1) if phase else None, "value": check["value"],
+        where = check["where"] or ""
+        phase = PHASE.search(where)
+        out.append({"reason": name, "phase": phase.group(1) if phase else "grasp" if "t_grasp" in where else None,
+                    "value": check["value"],
                     "limit": check["limit"], "margin": check["margin"], "where": check["where"]})
     return out
 
@@ -106,7 +108,7 @@ def failure_reasons(run: CliRun, budget_s: float) -> list[dict[str, Any]]:
         if run.exit_code == 2 and match:  # refused before solving (out of reach), no plan written
             return [{"reason": match["reason"].strip(), "detail": line.strip()}, *late]
     what = {1: "bad input", 2: "infeasible", 64: "usage"}.get(run.exit_code, f"exit {run.exit_code}")
-    return [{"reason": what, "detail": last_line(run.stderr)}, *late]
+    return [{"reason": what, "detail": last_line(run.stderr) or "(nothing on stderr)"}, *late]
 
 
 def last_line(text: str) -> str:
