@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""lutgen benchmark: primitives next to pinocchio, table queries, build throughput, whole plans, and the
-approach NLP by IPOPT against a finite-difference SLSQP baseline (issue 6).
+"""lutgen benchmark: primitives next to pinocchio, table queries, build throughput, whole plans, the
+approach NLP by IPOPT against a finite-difference SLSQP baseline (issue 6), and the envelope's coverage (issue 20).
 
 Usage, from the repository root with the project's virtual environment::
 
-    .venv/bin/python scripts/bench.py                  # full: ~30 min on 2 cores, plus refines (see below)
-    .venv/bin/python scripts/bench.py --quick          # a few minutes: one cold plan per scenario, no refine
+    .venv/bin/python scripts/bench.py                  # full: ~30 min on 2 cores, plus refines and coverage (below)
+    .venv/bin/python scripts/bench.py --quick          # minutes: one cold plan per scenario and kind, no refine
     .venv/bin/python scripts/bench.py --quick --trim   # every key, smallest sizes (tests/test_bench.py)
 
 Writes JSON (``--out``, default ``out/bench.json``) and prints a digest table. Timings are
