@@ -293,6 +293,13 @@ def test_failure_reasons_name_the_failing_checks_of_a_stored_infeasible_plan():
     # the same plan, late: over budget as well
     late = failure_reasons(CliRun(2, 120.0, "", "", metrics), budget_s=100.0)
     assert [r["reason"] for r in late][-1] == "over budget" and len(late) == len(reasons) + 1
+    # a plan its deadline ended: the budget is named first, then the checks where the solve stood
+    cut = {**metrics, "notes": ["the plan's time budget ran out (Out_Of_Time after 9 stabilization iterations): …"],
+           "solver": {**metrics["solver"], "stabilization": {**metrics["solver"]["stabilization"],
+                                                            "status": "Out_Of_Time"}}}
+    ran_out = failure_reasons(CliRun(2, 97.0, "", "", cut), budget_s=100.0)
+    assert [r["reason"] for r in ran_out] == ["budget ran out", *(r["reason"] for r in reasons)]
+    assert "stabilization Out_Of_Time" in ran_out[0]["detail"] and "time budget ran out" in ran_out[0]["detail"]
     record = run_record(["plan", "s.toml"], CliRun(2, 80.0, "note: made from another grasp\n", "", metrics), 100.0)
     assert record["notes"][0] == "made from another grasp" and metrics["notes"][0] in record["notes"]
     assert record["command"] == "OMP_NUM_THREADS=1 lutgen plan s.toml --out plan.json"

@@ -24,6 +24,7 @@ CLI = ("-c", "from lut.cli.main import main; main()")  # `lutgen` of this checko
 PHASE = re.compile(r"\((approach|tracking|stabilization)\)")
 INFEASIBLE_LINE = re.compile(r"^INFEASIBLE \((?P<elapsed>[^)]*)\): (?P<reason>[^:]+)(?::|$)")
 OVER_BUDGET = "over budget"
+BUDGET_RAN_OUT = "budget ran out"  # the plan's own deadline ended a solve: on time, but not solved to the end
 
 
 @dataclass(frozen=True)
@@ -102,13 +103,23 @@ def failure_reasons(run: CliRun, budget_s: float) -> list[dict[str, Any]]:
     if run.exit_code == 0:
         return late
     if run.exit_code == 2 and run.metrics is not None:
-        return (failed_checks(run.metrics) or [{"reason": "infeasible", "detail": last_line(run.stderr)}]) + late
+        checks = failed_checks(run.metrics) or [{"reason": "infeasible", "detail": last_line(run.stderr)}]
+        return budget_ran_out(run.metrics) + checks + late
     for line in run.stderr.splitlines():
         match = INFEASIBLE_LINE.match(line.strip())
         if run.exit_code == 2 and match:  # refused before solving (out of reach), no plan written
             return [{"reason": match["reason"].strip(), "detail": line.strip()}, *late]
     what = {1: "bad input", 2: "infeasible", 64: "usage"}.get(run.exit_code, f"exit {run.exit_code}")
     return [{"reason": what, "detail": last_line(run.stderr) or "(nothing on stderr)"}, *late]
+
+
+def budget_ran_out(metrics: dict[str, Any]) -> list[dict[str, Any]]:
+    """``[{"reason": "budget ran out", …}]`` when the plan's deadline ended a solve (its notes or a solver status
+    say so), else ``[]``: the failing checks of such a plan are where the solve stood, not what it could reach."""
+    cut = [note for note in metrics.get("notes", []) if "time budget ran out" in note]
+    statuses = [f"{phase} {solve['status']}" for phase, solve in metrics.get("solver", {}).items()
+                if isinstance(solve, dict) and solve.get("status") == "Out_Of_Time"]
+    return [{"reason": BUDGET_RAN_OUT, "detail": "; ".join(cut + statuses)}] if cut or statuses else []
 
 
 def last_line(text: str) -> str:
