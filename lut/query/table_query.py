@@ -163,12 +163,12 @@ class TableQuery:
         """A solve warm-started from ``warm`` (cold without) in a child process with a hard time limit [s].
 
         The child's plan has a deadline inside that limit (:mod:`planner.deadline`): its solves end there with
-        the best they have, verified, before the process would be killed. Each NLP's own wall-time limit is a
-        fraction of the budget, so one NLP cannot take the time of those after it (approach, up to two
-        rate-tightening re-solves and the stabilization run one after another).
+        the best they have, verified, before the process would be killed. Each NLP's own wall-time limit is half
+        the budget, so the approach cannot take the stabilization's time (a warm approach converges in a few
+        iterations; a warm stabilization at a grasp between the table's may need many).
         """
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
-                         max_wall_s=max(1.0, budget_s / 4), deadline=Deadline.after(budget_s),
+                         max_wall_s=max(1.0, budget_s / 2), deadline=Deadline.after(budget_s),
                          timeout_name="the refine's share of --budget-s")
 
 
