@@ -29,6 +29,8 @@ def validate(scenario_path: str) -> None:
     click.echo(f"target     {sc.target.name}: {sc.target.mass_kg:.1f} kg, {len(sc.target.shapes)} shapes")
     handle = "" if layout.gripper_handle is None else f"; {'-'.join(layout.gripper_handle)} may touch only at the grasp"
     click.echo(f"collision  {len(layout.pairs)} body pairs{handle}")
+    weights = [f"{name} {getattr(sc.costs, name):g}" for name in COST_NAMES if getattr(sc.costs, name) > 0]
+    click.echo(f"costs      {', '.join(weights) or 'none (feasible plans, no optimum)'}")
     click.echo("ok")
 
 
@@ -74,7 +76,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     if not 0 < verify_step_s <= 0.02:
         raise LutgenError(f"--verify-step-s: must be in (0, 0.02], got {verify_step_s}")
     sc = load_scenario(scenario_path)
-    check_plan_outputs([scenario_path, sc.robot.urdf_path, sc.target.source], out_path, csv_path)
+    check_plan_outputs([scenario_path, *sc.input_files], out_path, csv_path)
     sc = replace(sc, costs=cost_weights(sc.costs, costs))
     state = target_state_from_options(sc, attitude, omega_deg_s, spin_rate_deg_s)
     click.echo(f"planning {sc.name}: building the problems…", err=True)

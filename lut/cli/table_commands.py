@@ -156,7 +156,7 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     state = TargetState(np.asarray(quat), omega)
     check_plan_outputs([table_path, *([scenario_path] if scenario_path else [])], out_path, csv_path)
     tq = TableQuery(table_path, scenario_path)
-    check_plan_outputs([table_path, tq.scenario_path, tq.scenario.robot.urdf_path, tq.scenario.target.source],
+    check_plan_outputs([table_path, tq.scenario_path, *tq.scenario.input_files],
                        out_path, csv_path)
     result = tq.query(state, budget_s=budget_s, refine=refine, since_s=started_s)
     for note in result.notes:
