@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
+from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach import ApproachProblem, ApproachSolution
@@ -116,25 +117,36 @@ class Planner:
             self._stabilization = StabilizationProblem(self.scenario)
         return self._stabilization
 
-    def plan(self, state: TargetState, warm_start: PlanParameters | GraspPlan | None = None) -> GraspPlan:
+    def plan(self, state: TargetState, warm_start: PlanParameters | GraspPlan | None = None,
+             deadline: Deadline = NO_DEADLINE) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
 
         A cold plan whose scan of meeting times reaches none raises :class:`OutOfReach` at once (without a
         reachable time the approach NLP would only search from θ_in for minutes). A cold plan whose
         stabilization fails from the first grasp tries the grasps the approach reaches from its next scanned
         guesses (:class:`~planner.plan_grasps.GraspSearch`). A warm plan keeps its grasp (a table's neighbours
-        stay in one family of solutions).
+        stay in one family of solutions). Past ``deadline`` no new solve starts and a running one ends: the plan
+        is what was found by then (its notes say so; verify judges it).
         """
         t_start = time.perf_counter()
         warm = warm_start.parameters if isinstance(warm_start, GraspPlan) else warm_start
         scan = ScanOnDemand(self.scenario, self.approach.spline, state, GRASP_GUESSES)
         if warm is None and not scan.result.reachable:
             raise OutOfReach(scan.result, time.perf_counter() - t_start)
-        search = GraspSearch(self, state, warm, scan, self.motion(state))
+        if deadline.bounded and not deadline.passed:
+            self._build_stabilization(cold=warm is None)
+        search = GraspSearch(self, state, warm, scan, self.motion(state), deadline)
         candidate, stab = search.run()
         plan = self.assemble(state, candidate, stab, search.timings_s(), search.notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
+
+    def _build_stabilization(self, cold: bool) -> None:
+        """Build the stabilization NLPs a plan will solve now, while its time is left: a build cannot be cut short
+        at a deadline (a cold solve also uses the coarse NLP)."""
+        problem = self.stabilization_problem
+        if cold and problem.coarse_via_points > 0:
+            problem.coarse_problem()
 
     def simulate(self, state: TargetState, given: PlanParameters) -> GraspPlan:
         """The plan that given parameters produce for ``state``, without solving (table queries).

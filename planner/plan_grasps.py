@@ -7,7 +7,9 @@ NLP, then the full one from its answer, must be feasible within :data:`SCREEN_BU
 that passes has its stabilization (within :data:`STABILIZATION_BUDGET` iterations in all). A grasp screened
 out is set aside, and the grasps set aside get that budgeted stabilization only when no later grasp
 stabilized. When none succeeds, the first grasp's stabilization is solved again without the budget, so the
-plan is never worse than from the first grasp alone. A warm plan keeps its grasp.
+plan is never worse than from the first grasp alone. A warm plan keeps its grasp. Once the plan's deadline has
+passed (:mod:`planner.deadline`) no further grasp or solve is started: the last grasp tried is the answer, and
+the plan's notes say so.
 """
 
 from __future__ import annotations
@@ -21,13 +23,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
+from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
+from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import ScanOnDemand
 from planner.phases.approach_solve import solve_approach
-from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
+from planner.phases.stabilization import (
+    GraspState,
+    StabilizationProblem,
+    StabilizationSolution,
+    smooth_stop_params,
+)
 from planner.phases.stabilization_solve import solve_stabilization
 from planner.phases.tracking import TrackingResult
 from planner.plan_parameters import ApproachParameters, PlanParameters
@@ -66,6 +75,7 @@ class _Planner(Protocol):
 
     scenario: Scenario
     approach: ApproachProblem
+    stabilization_spline: UniformCubicBSpline
 
     @property
     def stabilization_problem(self) -> StabilizationProblem: ...
@@ -100,11 +110,11 @@ class GraspCandidate:
         """The scenario's stabilization NLP (built on first use, kept by the planner)."""
         return self.planner.stabilization_problem
 
-    def stabilize(self, warm_params: Array | None, max_iterations: int | None,
-                  screen_iterations: int | None = None) -> StabilizationSolution:
+    def stabilize(self, warm_params: Array | None, max_iterations: int | None, screen_iterations: int | None = None,
+                  deadline: Deadline = NO_DEADLINE) -> StabilizationSolution:
         """The stabilization from this grasp, within ``max_iterations`` (None: the scenario's limit only),
-        screened by its coarse NLP within ``screen_iterations`` (None: no screen)."""
-        return solve_stabilization(self.problem, self.grasp, warm_params, max_iterations, screen_iterations)
+        screened by its coarse NLP within ``screen_iterations`` (None: no screen), ended at ``deadline``."""
+        return solve_stabilization(self.problem, self.grasp, warm_params, max_iterations, screen_iterations, deadline)
 
 
 def accumulated(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:
@@ -118,8 +128,9 @@ class GraspSearch:
     """One plan's search over grasps: its scan, tracking-rate scale, notes and phase times, for this plan only."""
 
     def __init__(self, planner: _Planner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
-                 motion: TargetMotion) -> None:
+                 motion: TargetMotion, deadline: Deadline = NO_DEADLINE) -> None:
         self.planner, self.state, self.warm, self.scan, self.motion = planner, state, warm, scan, motion
+        self.deadline = deadline
         self.tracking_speed_scale = 1.0  # of the approach's tracking-rate bounds; tightened within this plan
         self.notes: list[str] = []
         self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
@@ -133,7 +144,8 @@ class GraspSearch:
         """The grasp the plan is made of and its stabilization, trying the grasps in order.
 
         While another grasp remains, a grasp is screened first (:data:`SCREEN_BUDGET`); the grasps screened out
-        get their budgeted solve only when no grasp passed the screen and stabilized.
+        get their budgeted solve only when no grasp passed the screen and stabilized. Past the deadline the last
+        grasp tried is the answer.
         """
         app = self._solve_approach(self.warm.approach if self.warm is not None else None)
         first = self._candidate(app)
@@ -143,21 +155,34 @@ class GraspSearch:
             more = self._another_grasp_remains(candidate)
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
-            stab = self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
-            if stab.success or budget is None:
-                return candidate, stab
-            if stab.status == SolveOutcome.SCREENED_OUT:
+            last = candidate, self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
+            if last[1].success or budget is None or self.deadline.passed:
+                return self._answer(*last)
+            if last[1].status == SolveOutcome.SCREENED_OUT:
                 screened_out.append(candidate)
-            self._note_failure(candidate, stab, "trying the approach's next guess" if more else "")
+            self._note_failure(*last, "trying the approach's next guess" if more else "")
         for candidate in screened_out:
-            stab = self._stabilize(candidate, STABILIZATION_BUDGET)
-            if stab.success:
-                return candidate, stab
-            self._note_failure(candidate, stab, "")
+            if self.deadline.passed:
+                break
+            last = candidate, self._stabilize(candidate, STABILIZATION_BUDGET)
+            if last[1].success:
+                return last
+            self._note_failure(*last, "")
+        if self.deadline.passed:
+            return self._answer(*last)
         # a budgeted failure is never the answer: the first grasp gets its whole solve
         self.notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
                           "again without it")
         return first, self._stabilize(first, None)
+
+    def _answer(self, candidate: GraspCandidate, stab: StabilizationSolution) -> tuple[GraspCandidate,
+                                                                                     StabilizationSolution]:
+        """``(candidate, stab)`` as the plan's grasp, with a note when the deadline cut the search short."""
+        if self.deadline.passed and not stab.success:
+            self.notes.append(f"the plan's time budget ran out ({stab.status} after {stab.iterations} stabilization "
+                              f"iterations): the plan is the grasp at t = {candidate.grasp_time_s:.1f} s as far as it "
+                              "was solved")
+        return candidate, stab
 
     def _note_failure(self, candidate: GraspCandidate, stab: StabilizationSolution, then: str) -> None:
         """Say in the plan's notes that the stabilization from ``candidate`` failed, and what comes next."""
@@ -179,7 +204,7 @@ class GraspSearch:
         """``first``, then the grasps the approach reaches from its next scanned guesses while one remains."""
         candidate = first
         yield candidate
-        while self._another_grasp_remains(candidate):
+        while self._another_grasp_remains(candidate) and not self.deadline.passed:
             nxt = self._solve_approach(None, max_starts=GRASP_GUESSES, skip_guesses=candidate.app.start_guess + 1,
                                        max_iterations=approach_retry_budget(first.app.iterations))
             if not nxt.success:
@@ -193,12 +218,17 @@ class GraspSearch:
     def _solve_approach(self, warm: ApproachParameters | None, **options: int) -> ApproachSolution:
         """The approach NLP for this plan's state, scan and tracking-rate scale."""
         return solve_approach(self.planner.approach, self.state, warm, tracking_speed_scale=self.tracking_speed_scale,
-                              scan=self.scan, **options)
+                              scan=self.scan, deadline=self.deadline, **options)
 
     def _stabilize(self, candidate: GraspCandidate, budget: int | None,
                    screen: int | None = None) -> StabilizationSolution:
+        """The stabilization from ``candidate`` (this plan's warm start, iteration budget, screen and deadline)."""
+        if self.deadline.passed:  # no NLP is built or solved: the smooth stop a cold solve starts from, unsolved
+            params = smooth_stop_params(self.planner.stabilization_spline, self.planner.scenario.robot, candidate.grasp)
+            return replace(StabilizationSolution.given(params), success=False, status=SolveOutcome.OUT_OF_TIME)
         t0 = time.perf_counter()
-        result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget, screen)
+        result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget, screen,
+                                     self.deadline)
         self.stabilization_s += time.perf_counter() - t0
         return result
 
@@ -208,7 +238,8 @@ class GraspSearch:
         for round_ in range(TIGHTENING_ROUNDS + 1):
             samples, tr = self.planner.approach_and_tracking(app, self.motion)
             ratio = tr.peak_rate_demand
-            if ratio <= RATE_DEMAND_TOLERATED or round_ == TIGHTENING_ROUNDS or not app.success:
+            if ratio <= RATE_DEMAND_TOLERATED or round_ == TIGHTENING_ROUNDS or not app.success \
+                    or self.deadline.passed:
                 break
             self.tracking_speed_scale = scale = self.tracking_speed_scale / ratio * TIGHTENING_MARGIN
             self.notes.append(f"tracking joint rate {ratio:.3f}× the limit: approach re-solved with its tracking-rate "

@@ -77,7 +77,7 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     check_options(options)
     config, scenario, grid = prepare(grid_path)
     jpath = journal_path(table_path)
-    inputs = [grid_path, config.scenario_path, scenario.robot.urdf_path, scenario.target.source]
+    inputs = [grid_path, config.scenario_path, *scenario.input_files]
     check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
     mhash = table_hash(scenario)
     complete = existing_work(table_path, jpath, options, mhash, config)

@@ -11,7 +11,7 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
     from planner.config.settings import CostWeights
     from planner.model.target import TargetState
 
-MAX_BUDGET_S = 86400.0  # a query's time budget beyond a day is a typo [s]
+MAX_BUDGET_S = 86400.0  # a plan's or query's time budget beyond a day is a typo [s]
 COST_NAMES = ("manipulability", "min_distance", "approach_energy", "attitude_disturbance", "peak_wrench")
 
 
@@ -26,6 +26,15 @@ def parse_floats(text: str, count: int, option: str) -> list[float]:
     if len(values) != count:
         raise TargetStateError(f"{option}: expected {count} comma-separated numbers, got {text!r}")
     return values
+
+
+def check_budget(budget_s: float) -> float:
+    """``--budget-s`` [s], checked: in (0, :data:`MAX_BUDGET_S`]."""
+    from planner.errors import LutgenError
+
+    if not 0 < budget_s <= MAX_BUDGET_S:
+        raise LutgenError(f"--budget-s: must be in (0, {MAX_BUDGET_S:g}] s, got {budget_s}")
+    return budget_s
 
 
 def cost_weights(base: CostWeights, specs: tuple[str, ...]) -> CostWeights:

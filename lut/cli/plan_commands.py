@@ -7,7 +7,7 @@ import sys
 import click
 
 from lut.cli.exit_codes import ExitCode
-from lut.cli.options import COST_NAMES, check_plan_outputs, cost_weights, target_state_from_options
+from lut.cli.options import COST_NAMES, check_budget, check_plan_outputs, cost_weights, target_state_from_options
 from lut.cli.plan_output import export_and_verdict, plan_table
 from lut.cli.user_errors import user_errors
 
@@ -29,6 +29,8 @@ def validate(scenario_path: str) -> None:
     click.echo(f"target     {sc.target.name}: {sc.target.mass_kg:.1f} kg, {len(sc.target.shapes)} shapes")
     handle = "" if layout.gripper_handle is None else f"; {'-'.join(layout.gripper_handle)} may touch only at the grasp"
     click.echo(f"collision  {len(layout.pairs)} body pairs{handle}")
+    weights = [f"{name} {getattr(sc.costs, name):g}" for name in COST_NAMES if getattr(sc.costs, name) > 0]
+    click.echo(f"costs      {', '.join(weights) or 'none (feasible plans, no optimum)'}")
     click.echo("ok")
 
 
@@ -47,31 +49,41 @@ def validate(scenario_path: str) -> None:
               help="Also write the samples as CSV.")
 @click.option("--verify-step-s", type=float, default=0.02, show_default=True,
               help="Dense verification step (s).")
+@click.option("--budget-s", type=float, default=100.0, show_default=True,
+              help="Time budget of the whole plan (s), from the command's start, retries over grasps included: a "
+                   "solve still running at it ends, and the plan found by then is verified and reported.")
 @user_errors
 def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None, omega_deg_s: str | None,
-         costs: tuple[str, ...], out_path: str | None, csv_path: str | None, verify_step_s: float) -> None:
+         costs: tuple[str, ...], out_path: str | None, csv_path: str | None, verify_step_s: float,
+         budget_s: float) -> None:
     """Plan one grasp for SCENARIO_PATH directly (no look-up table), verify it densely, export it.
 
-    Exit code 0: feasible; 2: infeasible (the violated constraints are printed); 1: bad input.
+    Exit code 0: feasible; 2: infeasible (the violated constraints are printed), out of reach, or no feasible
+    plan within --budget-s; 1: bad input.
     """
+    import time
+
+    started_s = time.monotonic()  # the budget counts from here: building the problems is part of the plan
     from dataclasses import replace
 
     from planner.config.scenario import load_scenario
+    from planner.deadline import VERIFY_RESERVE_S, Deadline
     from planner.errors import LutgenError
     from planner.plan import OutOfReach, Planner
     from planner.verify.verifier import summary_lines, verify
 
+    deadline = Deadline.after(check_budget(budget_s), started_s).earlier(VERIFY_RESERVE_S)
     if not 0 < verify_step_s <= 0.02:
         raise LutgenError(f"--verify-step-s: must be in (0, 0.02], got {verify_step_s}")
     sc = load_scenario(scenario_path)
-    check_plan_outputs([scenario_path, sc.robot.urdf_path, sc.target.source], out_path, csv_path)
+    check_plan_outputs([scenario_path, *sc.input_files], out_path, csv_path)
     sc = replace(sc, costs=cost_weights(sc.costs, costs))
     state = target_state_from_options(sc, attitude, omega_deg_s, spin_rate_deg_s)
     click.echo(f"planning {sc.name}: building the problems…", err=True)
     planner = Planner(sc)
     click.echo(f"  built in {planner.build_time_s:.1f} s; solving…", err=True)
     try:
-        result = planner.plan(state)
+        result = planner.plan(state, deadline=deadline)
     except OutOfReach as exc:  # proved infeasible before solving: no trajectory to verify or export
         click.echo(f"INFEASIBLE ({exc.elapsed_s:.1f} s): {exc}", err=True)
         if out_path or csv_path:

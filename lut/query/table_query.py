@@ -33,6 +33,7 @@ from lut.table.records import from_record
 from lut.table.schema import TableError
 from lut.table.store import Table
 from planner.config.scenario import Scenario, load_scenario
+from planner.deadline import Deadline
 from planner.errors import LutgenError
 from planner.model.target import TargetState
 from planner.plan import GraspPlan, Planner
@@ -40,7 +41,7 @@ from planner.plan_parameters import PlanParameters
 from planner.verify.verifier import VerifyReport, verify
 
 PERIOD_FREE = float("inf")  # the spin period of a target that does not spin [s]
-FINISH_RESERVE_S = 3.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]
+FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]
 MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
 
 
@@ -99,13 +100,17 @@ class TableQuery:
 
     # ---- the whole query ---------------------------------------------------------------------
 
-    def query(self, state: TargetState, budget_s: float = 100.0, refine: bool = False) -> QueryResult:
-        """Lookup → interpolate → re-simulate + verify → refine if needed (or asked), within ``budget_s`` [s].
+    def query(self, state: TargetState, budget_s: float = 100.0, refine: bool = False,
+              since_s: float | None = None) -> QueryResult:
+        """Lookup → interpolate → re-simulate + verify → refine if needed (or asked), within ``budget_s`` [s]
+        counted from ``since_s`` (a ``time.monotonic()`` instant; default: now).
 
-        The refine runs in a child process killed at the budget (less :data:`FINISH_RESERVE_S` to
-        re-simulate and verify its answer), so a query never overruns, whatever the solver does.
+        The refine runs in a child process whose plan ends at the budget less :data:`FINISH_RESERVE_S` (to
+        re-simulate and verify its answer here) and which is killed there, so a query never overruns, whatever
+        the solver does.
         """
         t_start = time.perf_counter()
+        deadline = Deadline.after(budget_s, since_s)
         latency: dict[str, float] = {}
         found = self.interpolate(state)
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
@@ -120,7 +125,7 @@ class TableQuery:
             attempts.insert(0, (found.parameters, QuerySource.REFINED))
         refine_failure = ""
         for warm, label in attempts:
-            remaining = budget_s - (time.perf_counter() - t_start) - FINISH_RESERVE_S
+            remaining = deadline.remaining_s() - FINISH_RESERVE_S
             if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
                 break
             t0 = time.perf_counter()
@@ -157,12 +162,14 @@ class TableQuery:
     def _refine(self, state: TargetState, warm: PlanParameters | None, budget_s: float) -> PointResult:
         """A solve warm-started from ``warm`` (cold without) in a child process with a hard time limit [s].
 
-        Each NLP's own wall-time limit is a fraction of the budget so that a solve returns its best
-        iterate before the process is killed (approach, up to two rate-tightening re-solves and the
-        stabilization run one after another).
+        The child's plan has a deadline inside that limit (:mod:`planner.deadline`): its solves end there with
+        the best they have, verified, before the process would be killed. Each NLP's own wall-time limit is half
+        the budget, so the approach cannot take the stabilization's time (a warm approach converges in a few
+        iterations; a warm stabilization at a grasp between the table's may need many).
         """
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
-                         max_wall_s=max(1.0, budget_s / 4), timeout_name="the refine's share of --budget-s")
+                         max_wall_s=max(1.0, budget_s / 2), deadline=Deadline.after(budget_s),
+                         timeout_name="the refine's share of --budget-s")
 
 
 def _stored_scenario(table: Table, table_path: Path) -> Path:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from lut.solve.point_worker import WARM_PREFIX, load_npz, save_npz
 from lut.table.point_result import PointResult
 from lut.table.records import failed_result, from_record, parameter_fields
+from planner.deadline import Deadline
 from planner.plan_parameters import PlanParameters
 
 if TYPE_CHECKING:
@@ -23,11 +24,12 @@ DEFAULT_SOLVER = "lut.solve.point_worker:solve_point"  # module:function the chi
 
 def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: PlanParameters | None,
               warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None,
-              timeout_name: str = "--point-timeout") -> PointResult:
+              deadline: Deadline | None = None, timeout_name: str = "--point-timeout") -> PointResult:
     """Solve one point in a child process; timeouts and crashes become failed results.
 
     ``warm``, shifted in time by ``warm_shift_s`` [s], is the solve's warm start. ``max_wall_s`` [s], when
     given, lowers the per-NLP wall-time limit of the solve (see :func:`lut.solve.point_worker.solve_point`);
+    ``deadline``, when given, ends the child's plan there (its best plan is verified and returned);
     ``timeout_s`` [s] is the hard limit of the whole process, which a timeout's reason names as
     ``timeout_name`` (the option that set it).
     """
@@ -37,6 +39,8 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
                 "omega_body_rad_s": state.omega_body_rad_s, "warm_shift_s": warm_shift_s}
         if max_wall_s is not None:
             args["max_wall_s"] = max_wall_s
+        if deadline is not None:  # time.monotonic() is one clock for every process of the machine
+            args["deadline_at_s"] = deadline.at_s
         if warm is not None:
             args.update({WARM_PREFIX + key: value for key, value in parameter_fields(warm).items()})
         save_npz(in_path, args)

@@ -33,6 +33,7 @@ from lut.table.records import (
     result_from_plan,
     to_record,
 )
+from planner.deadline import NO_DEADLINE, VERIFY_RESERVE_S, Deadline
 from planner.plan_parameters import PlanParameters
 
 if TYPE_CHECKING:
@@ -44,11 +45,13 @@ _PLANNERS: dict[str, Planner] = {}
 
 def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
                 omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
-                max_wall_s: float | None = None) -> Record:
+                max_wall_s: float | None = None, deadline_at_s: float | None = None) -> Record:
     """Plan and verify one target state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]); warm-started
     from a neighbour's parameters, shifted in time by ``warm_shift_s`` [s], when given.
 
-    ``max_wall_s`` [s] lowers the scenario's per-NLP wall-time limit (a query's refine inside its budget).
+    ``max_wall_s`` [s] lowers the scenario's per-NLP wall-time limit (a query's refine inside its budget);
+    ``deadline_at_s`` (a ``time.monotonic()`` instant) ends the plan there, less :data:`VERIFY_RESERVE_S` to verify
+    it and write the record.
     """
     from planner.model.target import TargetState
     from planner.plan import OutOfReach
@@ -63,7 +66,8 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
         warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.max_start_delay_s)
     t0 = time.perf_counter()
     try:
-        plan = planner.plan(state, warm_start)
+        deadline = NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
+        plan = planner.plan(state, warm_start, deadline)
     except OutOfReach as exc:
         return to_record(out_of_reach_result(point, str(exc), time.perf_counter() - t0))
     result = result_from_plan(point, plan, verify(plan))
@@ -109,7 +113,7 @@ def main(argv: list[str]) -> int:
     args = load_npz(Path(in_path))
     warm = parameters_from_fields({k[len(WARM_PREFIX):]: v for k, v in args.items() if k.startswith(WARM_PREFIX)})
     point = int(args["point"])
-    extra = {"max_wall_s": float(args["max_wall_s"])} if "max_wall_s" in args else {}
+    extra = {key: float(args[key]) for key in ("max_wall_s", "deadline_at_s") if key in args}
     try:
         rec = solver(str(args["scenario_path"]), point, args["attitude_wxyz"], args["omega_body_rad_s"], warm,
                      float(args["warm_shift_s"]), **extra)

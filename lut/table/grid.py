@@ -24,6 +24,9 @@ rotation by ``a`` about unit ``v``.
 **tumble** — ``omega_x/y/z_deg_s`` are the body rates ``ω_body``; ``roll_deg``, ``pitch_deg``, ``yaw_deg``
 the initial attitude, URDF convention ``R_world_body = Rz(yaw) Ry(pitch) Rx(roll)``; pitch must stay
 inside (-90°, 90°), where the angles are unique.
+
+An angle axis whose values go round the whole turn (α, roll, yaw) wraps at 360° like the phase
+(:attr:`lut.table.grid_config.Axis.periodic`), without the phase's time symmetry.
 """
 
 from __future__ import annotations
@@ -231,7 +234,8 @@ class Grid:
     # ---- cells ----------------------------------------------------------------------------------------
 
     def locate(self, coords: ArrayLike) -> Cell:
-        """The cell enclosing ``coords`` with multilinear weights; the phase axis wraps at 360°.
+        """The cell enclosing ``coords`` with multilinear weights; periodic axes (the phase, an angle round the
+        whole turn: :attr:`Axis.periodic`) wrap at 360°.
 
         Outside the grid on any other axis (beyond 1e-6 of a bound, or off a single-valued axis):
         ``TargetStateError`` naming the axis, e.g. ``spin_rate_deg_s = 5.2 not in [3, 4]``.

@@ -29,7 +29,6 @@ AXIS_NAMES: dict[str, tuple[str, ...]] = {
     "tumble": ("omega_x_deg_s", "omega_y_deg_s", "omega_z_deg_s", "roll_deg", "pitch_deg", "yaw_deg"),
 }
 PHASE_AXIS = "spin_phase_deg"
-PERIODIC_AXES = frozenset({PHASE_AXIS})  # 360° is the same state as 0°
 # angles whose value is only defined modulo 360: a state's coordinate is taken in the axis' window
 ANGLE_AXES = frozenset({"spin_axis_angle_deg", "spin_phase_deg", "roll_deg", "yaw_deg"})
 
@@ -55,7 +54,12 @@ class Axis:
 
     @property
     def periodic(self) -> bool:
-        return self.name in PERIODIC_AXES
+        """True when the axis wraps at 360° (the last value and the first one + 360° enclose a cell): the spin
+        phase always (the flat spin's symmetry), any other angle when its values go round the whole turn, one
+        step apart across the wrap."""
+        if self.name == PHASE_AXIS:
+            return True
+        return self.name in ANGLE_AXES and self.count > 1 and abs(self.max + self.step - self.min - 360.0) <= 1e-9 * 360
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,7 @@ from planner.config.settings import (
 )
 from planner.config.target import TargetConfig, load_target
 from planner.config.toml_table import TomlTable, read_toml
+from planner.config.variant import resolve_variant
 from planner.errors import ConfigError
 from planner.model.robot import RobotModel
 from planner.model.urdf import load_robot
@@ -40,7 +41,7 @@ class Scenario:
     """Everything one plan needs, loaded and validated (SI units)."""
 
     source: str
-    text: str  # the scenario file's text (stored in tables for provenance)
+    text: str  # the scenario file's text, its base's first for a variant (stored in tables for provenance)
     name: str
     robot: RobotModel
     target: TargetConfig
@@ -55,6 +56,13 @@ class Scenario:
     limits: Limits
     costs: CostWeights
     solver: SolverSettings
+    base_source: str | None = None  # the scenario a variant extends (planner.config.variant), None for a plain one
+
+    @property
+    def input_files(self) -> list[str]:
+        """Every file this scenario was read from: itself, its base, the robot URDF, the target file."""
+        files = [self.source, *([self.base_source] if self.base_source else [])]
+        return [*files, str(self.robot.urdf_path), self.target.source]
 
 
 @dataclass(frozen=True)
@@ -69,7 +77,8 @@ class _ChaserStart:
 def load_scenario(path: str | Path) -> Scenario:
     """Read a scenario TOML file, its robot URDF and its target file, and validate all of them."""
     path = Path(path)
-    data, text = read_toml(path)
+    resolved = resolve_variant(path, *read_toml(path))
+    data, text = resolved.data, resolved.text
     src = str(path)
     t = TomlTable(data, src)
     name = t.string("name")
@@ -86,7 +95,8 @@ def load_scenario(path: str | Path) -> Scenario:
     solver = SolverSettings.read(t.table("solver", default={}))
     t.finish()
     return Scenario(src, text, name, robot, target, state, start.q_initial, start.bounds_m, start.guess_m, phases,
-                    approach, tracking, stab, limits, costs, solver)
+                    approach, tracking, stab, limits, costs, solver,
+                    None if resolved.base_path is None else str(resolved.base_path))
 
 
 def _read_robot(t: TomlTable, base_dir: Path) -> RobotModel:

@@ -12,6 +12,8 @@ is satisfied only once its slack is below ``slack_tol``.
 The same callback can also end a solve after an iteration budget (``max_iterations`` in :meth:`arm`,
 ``budget_exhausted`` afterwards): the planner gives a stabilization from one grasp a budget when another
 grasp is there to try (:mod:`planner.plan_grasps`). The budget works with or without the feasibility test.
+And it ends a solve once the plan's deadline (:mod:`planner.deadline`) has passed (``out_of_time`` afterwards):
+the iterate reached by then is the answer.
 """
 
 from __future__ import annotations
@@ -20,12 +22,14 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.deadline import NO_DEADLINE, Deadline
+
 Array = NDArray[np.float64]
 
 
 class FeasibilityStop(ca.Callback):
     """IPOPT iteration callback: returns 1 (stop) once ``lbg − tol ≤ g ≤ ubg + tol`` and slacks ≤ slack_tol,
-    or once the armed iteration budget is spent."""
+    or once the armed iteration budget is spent, or once the armed deadline has passed."""
 
     def __init__(self, name: str, n_x: int, n_g: int, n_p: int, slack_index: slice, slack_tol: float | Array,
                  constraint_tol: float) -> None:
@@ -40,20 +44,25 @@ class FeasibilityStop(ca.Callback):
         self.stop_when_feasible = True
         self.max_iterations: int | None = None
         self.budget_exhausted = False
+        self.deadline = NO_DEADLINE
+        self.out_of_time = False
         self._calls = 0
         self.construct(name, {})
 
-    def arm(self, lbg: Array, ubg: Array, stop_when_feasible: bool = True, max_iterations: int | None = None) -> None:
+    def arm(self, lbg: Array, ubg: Array, stop_when_feasible: bool = True, max_iterations: int | None = None,
+            deadline: Deadline = NO_DEADLINE) -> None:
         """Set the bounds of the coming solve and clear the stop flags.
 
         ``stop_when_feasible`` False keeps only the budget; ``max_iterations`` (None: none) stops the solve
-        after that many IPOPT iterations.
+        after that many IPOPT iterations; ``deadline`` stops it at the first iteration past that instant.
         """
         self.lbg, self.ubg = np.asarray(lbg, dtype=float), np.asarray(ubg, dtype=float)
         self.stop_when_feasible = stop_when_feasible
         self.max_iterations = max_iterations
+        self.deadline = deadline
         self.stopped = False
         self.budget_exhausted = False
+        self.out_of_time = False
         self._calls = 0
 
     def get_n_in(self) -> int:
@@ -83,4 +92,5 @@ class FeasibilityStop(ca.Callback):
             self.stopped = violation <= self.constraint_tol and bool(np.all(x[self.slack_index] <= self.slack_tol))
         self.budget_exhausted = not self.stopped and self.max_iterations is not None \
             and iteration >= self.max_iterations
-        return [1.0 if self.stopped or self.budget_exhausted else 0.0]
+        self.out_of_time = not (self.stopped or self.budget_exhausted) and self.deadline.passed
+        return [1.0 if self.stopped or self.budget_exhausted or self.out_of_time else 0.0]

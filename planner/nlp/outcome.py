@@ -38,6 +38,7 @@ class SolveOutcome(StrEnum):
     # the planner's own
     ITERATION_BUDGET_EXHAUSTED = "Iteration_Budget_Exhausted"  # the caller's budget over all starts was spent
     SCREENED_OUT = "Screened_Out"  # a grasp's coarse stabilization was not feasible within the screen's budget
+    OUT_OF_TIME = "Out_Of_Time"  # the plan's time budget (its deadline) ran out during this solve
     GIVEN = "given"  # parameters used as given (a table query), no solve
     NO_GUESS_LEFT = "no scanned initial guess left to start from"
     NO_PINNED_START = "no reachable meeting time with the base pinned"

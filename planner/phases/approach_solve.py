@@ -1,7 +1,8 @@
 """Solving the approach NLP for one target state: its starts (warm, base pinned, scanned guesses) and IPOPT.
 
 Everything a solve depends on besides the problem is passed in: the target state, the warm start, the scan
-of meeting times (held by the caller for one plan), the tracking-rate scale and the iteration budget.
+of meeting times (held by the caller for one plan), the tracking-rate scale, the iteration budget and the
+plan's deadline.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
@@ -30,7 +32,7 @@ def decision_vector(start: ApproachParameters | ApproachSolution | ApproachGuess
 def solve_approach(problem: ApproachProblem, state: TargetState,
                    warm_start: ApproachParameters | ApproachSolution | None = None, max_starts: int = 3,
                    tracking_speed_scale: float = 1.0, skip_guesses: int = 0, max_iterations: int | None = None,
-                   scan: ScanOnDemand | None = None) -> ApproachSolution:
+                   scan: ScanOnDemand | None = None, deadline: Deadline = NO_DEADLINE) -> ApproachSolution:
     """Solve ``problem`` for one observed target state.
 
     With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that
@@ -40,11 +42,12 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     status; its ``start_guess`` says which guess). ``tracking_speed_scale`` scales the tracking-node rate
     bounds. ``max_iterations`` (None: only the scenario's per-NLP ``max_iter``) bounds the IPOPT iterations
     of all the starts together; a solve that spends it ends unsuccessful, status ``Iteration_Budget_Exhausted``
-    (IPOPT calls back once per iteration, and once more in a cold start's restoration phase).
+    (IPOPT calls back once per iteration, and once more in a cold start's restoration phase). Past ``deadline``
+    no further start is tried and a running solve ends, status ``Out_Of_Time``.
     """
     t0 = time.perf_counter()
     warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, max_starts, tracking_speed_scale,
-                                                        skip_guesses)
+                                                        skip_guesses, deadline)
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     starts = [] if warm_start is None else [decision_vector(warm_start)]
@@ -52,17 +55,18 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     for attempt in range(max_starts + n_warm):
         if attempt == len(starts):
             starts += [decision_vector(g) for g in scan.result.guesses[skip_guesses:]]
-        if attempt >= len(starts) or (attempt > 0 and time.perf_counter() - t0 > problem.scenario.solver.max_wall_s):
+        if attempt >= len(starts) or (attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s
+                                                       or deadline.passed)):
             break
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
             break
         result = _solve_once(problem, state, starts[attempt], tracking_speed_scale, cold=attempt >= n_warm,
-                             max_iterations=left)
+                             max_iterations=left, deadline=deadline)
         if attempt >= n_warm:
             result = replace(result, start_guess=skip_guesses + attempt - n_warm)
         iterations += result.iterations
-        if result.success or problem.budget.budget_exhausted:
+        if result.success or problem.budget.budget_exhausted or problem.budget.out_of_time:
             break
     if result is None:
         return _no_start(problem, SolveOutcome.NO_GUESS_LEFT, problem.scenario.base_offset_guess_m,
@@ -72,7 +76,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
 
 def _base_pinned_first(problem: ApproachProblem, state: TargetState,
                        warm_start: ApproachParameters | ApproachSolution | None, max_starts: int,
-                       tracking_speed_scale: float, skip_guesses: int,
+                       tracking_speed_scale: float, skip_guesses: int, deadline: Deadline,
                        ) -> tuple[ApproachParameters | ApproachSolution | None, ApproachSolution | None, int]:
     """``(warm start, failed result, iterations)`` after the base-pinned solve a cold first solve with the
     approach-energy cost makes first (no solve otherwise).
@@ -83,7 +87,7 @@ def _base_pinned_first(problem: ApproachProblem, state: TargetState,
     """
     if warm_start is not None or not problem.scenario.costs.approach_energy > 0 or skip_guesses != 0:
         return warm_start, None, 0
-    pinned = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale)
+    pinned = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale, deadline)
     return (pinned, None, pinned.iterations) if pinned.success else (None, pinned, pinned.iterations)
 
 
@@ -96,7 +100,7 @@ def _no_start(problem: ApproachProblem, status: SolveOutcome, base_offset_m: tup
 
 
 def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts: int,
-                       tracking_speed_scale: float) -> ApproachSolution:
+                       tracking_speed_scale: float, deadline: Deadline) -> ApproachSolution:
     """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from guesses made for that base."""
     t0 = time.perf_counter()
     gx, gz = problem.scenario.base_offset_guess_m
@@ -106,9 +110,10 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
     lbw[base] = ubw[base] = (gx, gz)
     result, iterations = None, 0
     for g in initial_guesses(pinned, problem.spline, state, max_starts):
-        result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True)
+        result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
+                             deadline=deadline)
         iterations += result.iterations
-        if result.success or time.perf_counter() - t0 > problem.scenario.solver.max_wall_s:
+        if result.success or time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed:
             break
     if result is None:
         return _no_start(problem, SolveOutcome.NO_PINNED_START, (gx, gz), time.perf_counter() - t0)
@@ -117,7 +122,7 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
 
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float,
                 lbw: Array | None = None, ubw: Array | None = None, cold: bool = False,
-                max_iterations: int | None = None) -> ApproachSolution:
+                max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE) -> ApproachSolution:
     """One IPOPT run from ``w0`` ``(n_w,)``; ``cold``: starting in the restoration phase."""
     p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
@@ -132,7 +137,7 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     lbg[rates] *= tracking_speed_scale
     ubg[rates] *= tracking_speed_scale
     solver = problem.cold_solver if cold else problem.solver
-    problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations)
+    problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations, deadline=deadline)
     sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
     elapsed = time.perf_counter() - t0
     stats = solver.stats()
@@ -144,18 +149,24 @@ def _solution(problem: ApproachProblem, w: Array, g: Array, cost: float, stats: 
               elapsed_s: float) -> ApproachSolution:
     """The solution read off IPOPT's answer ``w`` and constraint values ``g``."""
     d = problem.decision
-    exhausted = problem.budget.budget_exhausted
+    stopped = _planner_stop(problem)
     dists = g[problem.constraints.slice("collision")]
     return ApproachSolution(
         params=w[d.slice("spline_params")],
         base_offset_m=w[d.slice("base_offset_m")],
         start_delay_s=float(w[d.slice("start_delay_s").start]),
         q_tracking=w[d.slice("tracking_nodes")].reshape(len(TRACKING_NODES), -1),
-        success=bool(stats["success"]) and not exhausted,
-        status=SolveOutcome.ITERATION_BUDGET_EXHAUSTED if exhausted else SolveOutcome.from_ipopt(
-            str(stats["return_status"])),
+        success=bool(stats["success"]) and stopped is None,
+        status=stopped or SolveOutcome.from_ipopt(str(stats["return_status"])),
         iterations=int(stats["iter_count"]),
         solve_time_s=elapsed_s,
         cost=cost,
         min_distance_m=float(dists[problem.held_to_margin].min()),
     )
+
+
+def _planner_stop(problem: ApproachProblem) -> SolveOutcome | None:
+    """Why the planner's callback ended the last solve, if it did: its iteration budget or the plan's deadline."""
+    if problem.budget.budget_exhausted:
+        return SolveOutcome.ITERATION_BUDGET_EXHAUSTED
+    return SolveOutcome.OUT_OF_TIME if problem.budget.out_of_time else None

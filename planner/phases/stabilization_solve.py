@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.deadline import NO_DEADLINE, Deadline
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
 
@@ -22,7 +23,7 @@ Array = NDArray[np.float64]
 
 def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None = None,
                         max_iterations: int | None = None, screen_iterations: int | None = None,
-                        ) -> StabilizationSolution:
+                        deadline: Deadline = NO_DEADLINE) -> StabilizationSolution:
     """Solve ``problem`` for ``grasp``, from ``warm_params`` ``(7·(N−5),)`` or, cold, by way of the coarse problem.
 
     A cold start first solves the coarse NLP from :meth:`~StabilizationProblem.initial_params` and starts the
@@ -34,18 +35,19 @@ def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_p
     screens the grasp: the coarse NLP, and then the full NLP from its answer, each get at most that many
     iterations, and a grasp where either is not feasible within them is given up at once (status
     ``Screened_Out``, no full solve from the initial parameters); a grasp that passes has the very answer of an
-    unscreened solve (the same iterates, only the budgets are smaller).
+    unscreened solve (the same iterates, only the budgets are smaller). Past ``deadline`` a running solve ends
+    and no further one starts (status ``Out_Of_Time``).
     """
     if warm_params is not None or problem.coarse_via_points == 0:
-        return solve_once(problem, grasp, warm_params, max_iterations)
+        return solve_once(problem, grasp, warm_params, max_iterations, deadline)
     coarse = problem.coarse_problem()
-    attempts = [solve_once(coarse, grasp, None, _screened(max_iterations, screen_iterations))]
+    attempts = [solve_once(coarse, grasp, None, _screened(max_iterations, screen_iterations), deadline)]
     screened_out = screen_iterations is not None and not attempts[0].success
     for start in () if screened_out else (attempts[0].params, None):
         left = None if max_iterations is None else max_iterations - sum(a.iterations for a in attempts)
-        if left is not None and left <= 0:
+        if (left is not None and left <= 0) or attempts[-1].status == SolveOutcome.OUT_OF_TIME:
             break
-        attempts.append(solve_once(problem, grasp, start, _screened(left, screen_iterations)))
+        attempts.append(solve_once(problem, grasp, start, _screened(left, screen_iterations), deadline))
         screened_out = screen_iterations is not None and not attempts[-1].success
         if attempts[-1].success or screened_out:
             break
@@ -53,7 +55,8 @@ def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_p
     return replace(last, iterations=sum(a.iterations for a in attempts),
                    solve_time_s=sum(a.solve_time_s for a in attempts),
                    build_time_s=problem.build_time_s + coarse.build_time_s,
-                   status=SolveOutcome.SCREENED_OUT if screened_out else last.status)
+                   status=SolveOutcome.SCREENED_OUT if screened_out and last.status != SolveOutcome.OUT_OF_TIME
+                   else last.status)
 
 
 def _screened(max_iterations: int | None, screen_iterations: int | None) -> int | None:
@@ -63,14 +66,14 @@ def _screened(max_iterations: int | None, screen_iterations: int | None) -> int 
 
 
 def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None,
-               max_iterations: int | None = None) -> StabilizationSolution:
+               max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE) -> StabilizationSolution:
     """One IPOPT run of ``problem`` from ``warm_params`` (None: its initial parameters)."""
     par = problem.parameters(grasp)
     w0 = problem.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
     if problem.n_extra:
         M0, _, _ = problem.outputs(w0, par)
         w0 = np.concatenate([w0, [float(np.abs(np.asarray(M0)).max())]])
-    problem.stop.arm(problem.lbg, problem.ubg, problem.feasibility_only, max_iterations)
+    problem.stop.arm(problem.lbg, problem.ubg, problem.feasibility_only, max_iterations, deadline)
     t0 = time.perf_counter()
     sol = problem.solver(x0=w0, p=par, lbx=problem.lbw, ubx=problem.ubw, lbg=problem.lbg, ubg=problem.ubg)
     elapsed = time.perf_counter() - t0
@@ -82,5 +85,7 @@ def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Ar
         success, status = True, SolveOutcome.FEASIBLE_POINT_FOUND
     elif problem.stop.budget_exhausted:
         success, status = False, SolveOutcome.ITERATION_BUDGET_EXHAUSTED
+    elif problem.stop.out_of_time:
+        success, status = False, SolveOutcome.OUT_OF_TIME
     return StabilizationSolution(P, success, status, int(stats["iter_count"]), elapsed, problem.build_time_s,
                                  float(sol["f"]), float(np.abs(M).max()), float(d.min()))

@@ -7,6 +7,7 @@ scenario II state is in ``test_plan_scenarios.py`` (slow).
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -16,10 +17,12 @@ import pytest
 import planner.phases.approach_guess as approach_guess_module
 import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
+from planner.deadline import Deadline
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
 from planner.plan_grasps import SCREEN_BUDGET
+from planner.verify.verifier import verify
 
 SCENARIO_II = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "scenario_II.toml"
 
@@ -36,7 +39,7 @@ def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: in
     ``problems`` and the screen asked for in ``screens``, and succeeds only from grasps reached from scanned guess
     ``succeed_from_guess`` or later; screened, grasps before ``pass_screen_from_guess`` are screened out."""
 
-    def stabilize(self: GraspCandidate, warm_params, max_iterations, screen_iterations=None):
+    def stabilize(self: GraspCandidate, warm_params, max_iterations, screen_iterations=None, deadline=None):
         calls.append((self.app.start_guess, max_iterations, self.grasp_time_s))
         if problems is not None:
             problems.append(self.problem)
@@ -136,3 +139,45 @@ def test_screened_out_grasps_wait_until_no_grasp_passed_the_screen(planner_II, m
     assert guesses[n:] == [*guesses[:n - 1], 0] and screens[n:] == [None] * (len(calls) - n)
     assert [c[1] for c in calls[n:]] == [STABILIZATION_BUDGET] * (n - 1) + [None]
     assert plan.approach.start_guess == 0 and "solved again without it" in plan.notes[-1]
+
+
+class _SwitchedDeadline:
+    """A deadline that passes when the test says so (the planner reads only these two properties)."""
+
+    bounded = True
+    passed = False
+
+
+def test_past_the_deadline_no_further_grasp_is_tried(planner_II, monkeypatch):
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    deadline = _SwitchedDeadline()
+    failing = _stand_in(calls, GRASP_GUESSES)
+
+    def stabilize_then_run_out_of_time(self, *args):
+        deadline.passed = True  # the budget ends during the first grasp's stabilization
+        return failing(self, *args)
+
+    monkeypatch.setattr(GraspCandidate, "stabilize", stabilize_then_run_out_of_time)
+    approaches = []
+    solve = plan_grasps_module.solve_approach
+    monkeypatch.setattr(plan_grasps_module, "solve_approach", lambda *a, **k: approaches.append(k) or solve(*a, **k))
+    plan = planner.plan(sc.target_state.as_state(), deadline=deadline)
+    # the first grasp's stabilization failed and another grasp remained, but the time was up: no other approach,
+    # no other stabilization, no whole re-solve of the first grasp
+    assert len(calls) == 1 and len(approaches) == 1 and approaches[0]["deadline"] is deadline
+    assert plan.approach.start_guess == 0 and plan.t_grasp == pytest.approx(calls[0][2])
+    assert not plan.solver_ok and "time budget ran out" in plan.notes[-1]
+
+
+def test_a_plan_begun_past_its_deadline_is_still_a_plan_to_verify(planner_II, monkeypatch):
+    sc, planner = planner_II
+    calls: list = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 0))
+    plan = planner.plan(sc.target_state.as_state(), deadline=Deadline(time.monotonic() - 1.0))
+    # the approach NLP stops at its first callback; the stabilization is the unsolved smooth stop, no NLP solved
+    assert plan.approach.status == SolveOutcome.OUT_OF_TIME and plan.approach.iterations <= 1
+    assert calls == [] and plan.stabilization.status == SolveOutcome.OUT_OF_TIME and not plan.solver_ok
+    report = verify(plan)  # a whole trajectory: verify judges it like any other
+    assert report.t_grasp_s == pytest.approx(plan.t_grasp)
+    assert np.all(np.abs(plan.qd[-1]) < 1e-9)  # the smooth stop ends at rest

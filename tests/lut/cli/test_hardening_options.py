@@ -62,3 +62,8 @@ def test_unusable_query_budget_is_refused(tmp_path, budget):
     table = tmp_path / "t.h5"
     write_fake_table(table)
     assert_one_line_error(lutgen_in_process("query", table, *ON_GRID_STATE, "--budget-s", budget), "--budget-s")
+
+
+@pytest.mark.parametrize("budget", ["inf", "nan", "0", "-5", "1e9"])
+def test_unusable_plan_budget_is_refused(budget):
+    assert_one_line_error(lutgen_in_process("plan", SCENARIO_II, "--budget-s", budget), "--budget-s")

@@ -425,3 +425,44 @@ def test_continuation_order_covers_every_point_after_its_parent(grids, name):
     assert g.continuation_order() == order  # deterministic
     if g.kind == "flat_spin":  # the seed is the scenario default (4 °/s about +z, phase 0)
         np.testing.assert_allclose(g.coordinates(seed), [4.0, 90.0, 0.0])
+
+
+def _full_turn_grid(scenarios, axes: dict[str, tuple[float, float, int]], kind: str = "flat_spin") -> Grid:
+    text = f'name = "full_turn"\nscenario = "../scenarios/scenario_II.toml"\nkind = "{kind}"\n' + "".join(
+        f'\n[[axes]]\nname = "{n}"\nmin = {lo}\nmax = {hi}\ncount = {c}\n' for n, (lo, hi, c) in axes.items())
+    sc = scenarios[SCEN_II]
+    return Grid(load_grid_text(text, str(GRIDS / "full_turn.toml")), sc.target.inertia_body_kg_m2, _default(sc))
+
+
+def test_an_angle_round_the_whole_turn_wraps_like_the_phase(scenarios, grids):
+    """The spin axis anywhere in the orbital plane (paper §3): α every 30° round the turn; 330° and 0° enclose a
+    cell, so no α is beyond the grid and 359.999° sits next to 0°. A partial α range stays bounded."""
+    g = _full_turn_grid(scenarios, {"spin_rate_deg_s": (3.0, 4.0, 2), "spin_axis_angle_deg": (0.0, 330.0, 12),
+                                    "spin_phase_deg": (0.0, 270.0, 4)})
+    alpha = g.axes[1]
+    assert alpha.periodic and not grids["three_axes"].axes[1].periodic and not grids["flat_spin"].axes[1].periodic
+    cell = g.locate([3.5, 350.0, 0.0])
+    w = {g.coordinates(c)[1]: 0.0 for c in cell.corners}
+    for c, wc in zip(cell.corners, cell.weights, strict=True):
+        w[g.coordinates(c)[1]] += wc
+    assert w == pytest.approx({330.0: 1.0 / 3.0, 0.0: 2.0 / 3.0})
+    _check_cell(g, [3.5, 350.0, 0.0])
+    before, after = g.locate([3.5, 359.999, 0.0]), g.locate([3.5, -0.001, 0.0])
+    assert before.corners == after.corners and np.allclose(before.weights, after.weights)
+    for a in (345.0, 359.999, 15.0):  # a state anywhere round the turn is answered where it is, without a note
+        projection = project_to_grid(g, g.state_at([3.5, a, 100.0]))
+        assert projection.notes == ()
+        np.testing.assert_allclose(projection.coords, [3.5, a, 100.0], atol=1e-7)
+    assert g.flat_of((0, 0, 0)) in g.neighbours(g.flat_of((0, 11, 0)))  # 330° → 0° is one step
+
+
+def test_roll_and_yaw_round_the_whole_turn_wrap_and_pitch_never_does(scenarios):
+    t = _full_turn_grid(scenarios, {"omega_x_deg_s": (-4.0, 4.0, 2), "roll_deg": (-180.0, 150.0, 12),
+                                    "pitch_deg": (-60.0, 60.0, 3), "yaw_deg": (-180.0, 135.0, 8)}, kind="tumble")
+    periodic = {ax.name: ax.periodic for ax in t.axes if ax.count > 1}
+    assert periodic == {"omega_x_deg_s": False, "roll_deg": True, "pitch_deg": False, "yaw_deg": True}
+    _check_cell(t, [1.0, 0.0, 4.0, 175.0, 10.0, 170.0])
+    cell = t.locate([1.0, 0.0, 4.0, 179.999, 10.0, -179.999])
+    rolls = {t.coordinates(c)[3] for c in cell.corners}
+    yaws = {t.coordinates(c)[5] for c in cell.corners}
+    assert rolls == {150.0, -180.0} and yaws == {-180.0, -135.0}  # 179.999° wraps next to -180°; -179.999° is there

@@ -7,9 +7,12 @@ far outside the disc — the shape of the stabilization NLP's elastic mode in mi
 
 from __future__ import annotations
 
+import time
+
 import casadi as ca
 import numpy as np
 
+from planner.deadline import Deadline
 from planner.nlp.feasibility_stop import FeasibilityStop
 
 
@@ -25,6 +28,18 @@ def _solve(stop: FeasibilityStop | None, x0: list[float]):
                        options)
     sol = solver(x0=x0, lbx=[-np.inf, -np.inf, 0.0], ubx=[np.inf] * 3, lbg=-np.inf, ubg=1.0)
     return np.asarray(sol["x"]).ravel(), solver.stats()
+
+
+def _stopped_solver(name: str) -> tuple[FeasibilityStop, ca.Function]:
+    """The toy problem's solver with a fresh callback as its iteration callback (to be armed by the test)."""
+    stop = FeasibilityStop(name, 3, 1, 0, slice(2, 3), slack_tol=1e-6, constraint_tol=1e-9)
+    w = ca.MX.sym("w", 3)
+    solver = ca.nlpsol(name + "_solver", "ipopt",
+                       {"x": w, "f": 1e-6 * ((w[0] - 0.3) ** 2 + w[1] ** 2) + 100 * w[2],
+                        "g": w[0] ** 2 + w[1] ** 2 - w[2]},
+                       {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
+                        "ipopt.hessian_approximation": "limited-memory", "iteration_callback": stop})
+    return stop, solver
 
 
 def test_stops_at_the_first_feasible_iterate_before_ipopt_would():
@@ -55,12 +70,7 @@ def test_an_iteration_budget_ends_the_solve_after_that_many_iterations():
     x0 = [3.0, -2.0, 12.5]
     _, stats_full = _solve(None, x0)
     assert stats_full["iter_count"] > 5  # the budget below must cut the solve short
-    stop = FeasibilityStop("toy_budget", 3, 1, 0, slice(2, 3), slack_tol=1e-6, constraint_tol=1e-9)
-    w = ca.MX.sym("w", 3)
-    solver = ca.nlpsol("toy3", "ipopt", {"x": w, "f": 1e-6 * ((w[0] - 0.3) ** 2 + w[1] ** 2) + 100 * w[2],
-                                         "g": w[0] ** 2 + w[1] ** 2 - w[2]},
-                       {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": 1e-12,
-                        "ipopt.hessian_approximation": "limited-memory", "iteration_callback": stop})
+    stop, solver = _stopped_solver("toy_budget")
     kwargs = {"x0": x0, "lbx": [-np.inf, -np.inf, 0.0], "ubx": [np.inf] * 3, "lbg": -np.inf, "ubg": 1.0}
     # the budget alone (no feasibility test): exactly 3 iterations
     stop.arm(np.array([-np.inf]), np.array([1.0]), stop_when_feasible=False, max_iterations=3)
@@ -72,3 +82,18 @@ def test_an_iteration_budget_ends_the_solve_after_that_many_iterations():
     solver(**kwargs)
     assert not stop.budget_exhausted and not stop.stopped
     assert solver.stats()["success"] and solver.stats()["iter_count"] == stats_full["iter_count"]
+
+
+def test_a_passed_deadline_ends_the_solve_at_its_first_callback():
+    stop, solver = _stopped_solver("toy_deadline")
+    kwargs = {"x0": [3.0, -2.0, 12.5], "lbx": [-np.inf, -np.inf, 0.0], "ubx": [np.inf] * 3, "lbg": -np.inf,
+              "ubg": 1.0}
+    stop.arm(np.array([-np.inf]), np.array([1.0]), stop_when_feasible=False, deadline=Deadline(time.monotonic() - 1))
+    sol = solver(**kwargs)
+    assert stop.out_of_time and not stop.budget_exhausted and not stop.stopped
+    assert solver.stats()["iter_count"] == 0 and solver.stats()["return_status"] == "User_Requested_Stop"
+    np.testing.assert_array_equal(np.asarray(sol["x"]).ravel(), kwargs["x0"])  # the start, untouched
+    # a deadline far ahead never fires: the same solver runs to IPOPT's own end
+    stop.arm(np.array([-np.inf]), np.array([1.0]), stop_when_feasible=False, deadline=Deadline.after(3600.0))
+    solver(**kwargs)
+    assert not stop.out_of_time and solver.stats()["success"]

@@ -1,0 +1,49 @@
+"""A plan's wall-clock deadline: the instant its time budget ends, read by every stage that can stop early.
+
+An operator has 100 s from observing the target to moving the arm, so a plan is bounded as a whole: the
+grasp search starts no new grasp, and every NLP's iteration callback ends its solve, once the deadline has
+passed; what was found by then is verified and reported. Instants are ``time.monotonic()`` seconds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Deadline:
+    """The instant ``at_s`` [s, ``time.monotonic()``] a time budget ends; ``inf`` never does."""
+
+    at_s: float = math.inf
+
+    @classmethod
+    def after(cls, budget_s: float | None, since_s: float | None = None) -> Deadline:
+        """The deadline ``budget_s`` [s] after ``since_s`` (default: now); ``None`` is no deadline."""
+        if budget_s is None:
+            return cls()
+        return cls((time.monotonic() if since_s is None else since_s) + budget_s)
+
+    @property
+    def bounded(self) -> bool:
+        """True when there is a deadline at all."""
+        return math.isfinite(self.at_s)
+
+    def remaining_s(self) -> float:
+        """Seconds left until the deadline (negative once passed, ``inf`` without one)."""
+        return self.at_s - time.monotonic()
+
+    @property
+    def passed(self) -> bool:
+        """True once the deadline is behind us."""
+        return self.bounded and time.monotonic() >= self.at_s
+
+    def earlier(self, seconds: float) -> Deadline:
+        """The deadline ``seconds`` [s] sooner: room kept back for what must follow (verification, export)."""
+        return Deadline(self.at_s - seconds)
+
+
+NO_DEADLINE = Deadline()
+# kept back from a budget to verify the plan found and write it out [s]
+VERIFY_RESERVE_S = 5.0

@@ -1,0 +1,24 @@
+"""A plan's deadline: an instant on the monotonic clock, passed or not, with room kept back before it."""
+
+from __future__ import annotations
+
+import math
+import time
+
+from planner.deadline import NO_DEADLINE, Deadline
+
+
+def test_no_deadline_never_passes_and_leaves_all_the_time():
+    assert not NO_DEADLINE.bounded and not NO_DEADLINE.passed
+    assert NO_DEADLINE.remaining_s() == math.inf and NO_DEADLINE.earlier(5.0).remaining_s() == math.inf
+    assert Deadline.after(None) == NO_DEADLINE
+
+
+def test_a_deadline_counts_from_the_given_instant():
+    now = time.monotonic()
+    started = now - 10.0  # a command that began 10 s ago with a 12 s budget has ~2 s left
+    deadline = Deadline.after(12.0, started)
+    assert deadline.bounded and not deadline.passed
+    assert 0.0 < deadline.remaining_s() <= 2.0
+    assert deadline.earlier(3.0).passed and deadline.earlier(3.0).remaining_s() < 0.0
+    assert Deadline.after(0.0, now - 1e-3).passed  # a zero budget is over at once
