@@ -199,7 +199,7 @@ KIND_NAMES = ("scenario_I_flat_spin", "scenario_II_flat_spin", "scenario_I_tumbl
 SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "over_budget", "killed",
                 "runs")
 RECORD_KEYS = ("command", "exit_code", "wall_s", "feasible_on_time", "reasons", "notes", "source", "violations",
-               "solver", "start_delay_s", "free_axis_angle_deg", "last_line")
+               "solver", "start_delay_s", "free_axis_angle_deg", "refine_failure", "last_line")
 
 
 def _assert_summary(entry: dict[str, Any], command: str, what: str) -> None:

@@ -135,8 +135,10 @@ def run_record(args: list[str], run: CliRun, budget_s: float) -> dict[str, Any]:
     printed = [line[len("note: "):] for line in run.stdout.splitlines() if line.startswith("note: ")]
     notes = list(dict.fromkeys([*printed, *m.get("notes", [])]))  # a query prints its own notes, a plan its plan's
     source = [line.split()[1] for line in run.stdout.splitlines() if line.startswith("source ")]
+    refine = [line.split(": ", 1)[1] for line in run.stderr.splitlines() if line.startswith("refine did not finish: ")]
     return {"command": reproduction(args), "exit_code": run.exit_code, "wall_s": run.wall_s,
             "feasible_on_time": not reasons, "reasons": reasons, "notes": notes,
             "source": source[0] if source else None, "violations": m.get("violations"),
             "solver": m.get("solver"), "start_delay_s": m.get("start_delay_s"),
-            "free_axis_angle_deg": m.get("free_axis_angle_deg"), "last_line": last_line(run.stderr)}
+            "free_axis_angle_deg": m.get("free_axis_angle_deg"), "refine_failure": refine[0] if refine else None,
+            "last_line": last_line(run.stderr)}
