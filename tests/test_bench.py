@@ -196,8 +196,8 @@ def test_only_reruns_the_named_section_and_keeps_the_others(run_path, tmp_path):
 # ---- coverage (issue 20) ------------------------------------------------------------------------------------
 
 KIND_NAMES = ("scenario_I_flat_spin", "scenario_II_flat_spin", "scenario_I_tumble", "scenario_II_tumble")
-SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "over_budget", "killed",
-                "runs")
+SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "failures_by_first_reason",
+                "over_budget", "killed", "runs")
 RECORD_KEYS = ("command", "exit_code", "wall_s", "feasible_on_time", "reasons", "notes", "source", "violations",
                "solver", "start_delay_s", "free_axis_angle_deg", "refine_failure", "last_line")
 
@@ -219,6 +219,7 @@ def _assert_summary(entry: dict[str, Any], command: str, what: str) -> None:
         for reason in r["reasons"]:
             tally[reason["reason"]] = tally.get(reason["reason"], 0) + 1
     assert entry["reasons"] == tally, what
+    assert sum(entry["failures_by_first_reason"].values()) == entry["states"] - entry["feasible_on_time"], what
     assert entry["killed"] == sum(r["exit_code"] is None for r in runs), what
 
 
@@ -329,6 +330,7 @@ def test_summary_tallies_reasons_and_bars_judge_them():
     s = coverage.summary(runs)
     assert s["feasible_on_time"] == 1 and s["feasible_fraction"] == 1 / 3 and s["killed"] == 0
     assert s["reasons"] == {"collision": 2, "grasp_torque": 1} and s["wall_s"]["max"] == 70.0
+    assert s["failures_by_first_reason"] == {"collision": 2}
     plans = {k.name: coverage.summary([record(True, 10.0)] * 20) for k in coverage.KINDS}
     late = [record(False, 101.0, "over budget")] * 2
     plans["scenario_II_tumble"] = coverage.summary([record(True, 10.0)] * 18 + late)

@@ -105,9 +105,10 @@ def _runs(entry: dict[str, Any]) -> str:
     """``3/5 feasible on time; wall p50 …, p95 … s; reasons …`` of one kind's plans or queries."""
     if entry.get("runs") is None:
         return f"skipped: {entry.get('skipped')}"
-    wall, reasons = entry["wall_s"], ", ".join(f"{k} {v}" for k, v in entry["reasons"].items()) or "none"
+    wall = entry["wall_s"]
+    reasons = ", ".join(f"{k} {v}" for k, v in entry["failures_by_first_reason"].items()) or "none"
     return (f"{entry['feasible_on_time']}/{entry['states']} feasible on time; wall p50 {wall['median']:.1f}, "
-            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; reasons: {reasons}")
+            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; failures by first reason: {reasons}")
 
 
 def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:
