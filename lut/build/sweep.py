@@ -158,7 +158,10 @@ def _solve_layer(grid: Grid, config: GridConfig, options: BuildOptions, layer: C
         if warm is not None and config.kind == "flat_spin":
             # the child reaches the parent's configuration Δφ/rate earlier
             shift = grid.start_delay_shift_s(grid.coordinates(parent), grid.coordinates(point), forward_turn=True)
+        # a point's plan ends before its timeout (its best plan kept, not killed), and a warm start that leads
+        # nowhere here is followed by a cold plan
         tasks.append(joblib.delayed(run_point)(options.solver, str(config.scenario_path), point, grid.state(point),
                                                None if warm is None else warm.parameters, shift,
-                                               options.point_timeout_s))
+                                               options.point_timeout_s, plan_budget_s=options.point_timeout_s,
+                                               cold_fallback=True))
     return parallel(tasks) if tasks else ()

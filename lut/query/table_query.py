@@ -168,7 +168,7 @@ class TableQuery:
         iterations; a warm stabilization at a grasp between the table's may need many).
         """
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
-                         max_wall_s=max(1.0, budget_s / 2), deadline=Deadline.after(budget_s),
+                         max_wall_s=max(1.0, budget_s / 2), plan_budget_s=budget_s,
                          timeout_name="the refine's share of --budget-s")
 
 

@@ -24,12 +24,15 @@ DEFAULT_SOLVER = "lut.solve.point_worker:solve_point"  # module:function the chi
 
 def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: PlanParameters | None,
               warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None,
-              deadline: Deadline | None = None, timeout_name: str = "--point-timeout") -> PointResult:
+              plan_budget_s: float | None = None, cold_fallback: bool = False,
+              timeout_name: str = "--point-timeout") -> PointResult:
     """Solve one point in a child process; timeouts and crashes become failed results.
 
     ``warm``, shifted in time by ``warm_shift_s`` [s], is the solve's warm start. ``max_wall_s`` [s], when
     given, lowers the per-NLP wall-time limit of the solve (see :func:`lut.solve.point_worker.solve_point`);
-    ``deadline``, when given, ends the child's plan there (its best plan is verified and returned);
+    ``plan_budget_s``, when given, ends the child's plan that many seconds after its launch (its best plan
+    is verified and returned before the kill); ``cold_fallback`` re-plans cold a warm-started point whose plan is
+    infeasible (see :func:`lut.solve.point_worker.solve_point`);
     ``timeout_s`` [s] is the hard limit of the whole process, which a timeout's reason names as
     ``timeout_name`` (the option that set it).
     """
@@ -39,12 +42,14 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
                 "omega_body_rad_s": state.omega_body_rad_s, "warm_shift_s": warm_shift_s}
         if max_wall_s is not None:
             args["max_wall_s"] = max_wall_s
-        if deadline is not None:  # time.monotonic() is one clock for every process of the machine
-            args["deadline_at_s"] = deadline.at_s
+        if cold_fallback:
+            args["cold_fallback"] = 1
         if warm is not None:
             args.update({WARM_PREFIX + key: value for key, value in parameter_fields(warm).items()})
-        save_npz(in_path, args)
         t0 = time.perf_counter()
+        if plan_budget_s is not None:  # time.monotonic() is one clock for every process of the machine
+            args["deadline_at_s"] = Deadline.after(plan_budget_s).at_s
+        save_npz(in_path, args)
         try:
             proc = subprocess.run([sys.executable, "-m", "lut.solve.point_worker", solver, str(in_path),
                                    str(out_path), str(os.getpid())], capture_output=True, text=True, timeout=timeout_s)

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lut.solve.parent_watch import exit_with_parent
+from lut.table.point_result import PointResult, PointStatus
 from lut.table.records import (
     Record,
     failed_result,
@@ -37,6 +38,7 @@ from planner.deadline import NO_DEADLINE, VERIFY_RESERVE_S, Deadline
 from planner.plan_parameters import PlanParameters
 
 if TYPE_CHECKING:
+    from planner.model.target import TargetState
     from planner.plan import Planner
 
 WARM_PREFIX = "warm/"  # the warm start's parameter fields in IN.npz
@@ -45,13 +47,16 @@ _PLANNERS: dict[str, Planner] = {}
 
 def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
                 omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
-                max_wall_s: float | None = None, deadline_at_s: float | None = None) -> Record:
+                max_wall_s: float | None = None, deadline_at_s: float | None = None, cold_fallback: bool = False,
+                ) -> Record:
     """Plan and verify one target state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]); warm-started
     from a neighbour's parameters, shifted in time by ``warm_shift_s`` [s], when given.
 
     ``max_wall_s`` [s] lowers the scenario's per-NLP wall-time limit (a query's refine inside its budget);
     ``deadline_at_s`` (a ``time.monotonic()`` instant) ends the plan there, less :data:`VERIFY_RESERVE_S` to verify
-    it and write the record.
+    it and write the record. With ``cold_fallback`` a warm-started plan that verify finds infeasible is planned
+    again cold (with its retries over grasps, within the same deadline), and the cold plan is kept if it is
+    feasible: a neighbour's solution can lead into a family that does not work here.
     """
     from planner.model.target import TargetState
     from planner.plan import OutOfReach
@@ -65,13 +70,31 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
         period = 2 * np.pi / rate if rate > 0 else None
         warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.max_start_delay_s)
     t0 = time.perf_counter()
+    deadline = NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
     try:
-        deadline = NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
         plan = planner.plan(state, warm_start, deadline)
     except OutOfReach as exc:
         return to_record(out_of_reach_result(point, str(exc), time.perf_counter() - t0))
     result = result_from_plan(point, plan, verify(plan))
+    if cold_fallback and warm_start is not None and result.status is not PointStatus.FEASIBLE and not deadline.passed:
+        result = _cold_if_feasible(planner, point, state, deadline, result)
     return to_record(replace(result, solve_time_s=time.perf_counter() - t0))
+
+
+def _cold_if_feasible(planner: Planner, point: int, state: TargetState, deadline: Deadline,
+                      warm: PointResult) -> PointResult:
+    """The cold plan of ``state`` if verify finds it feasible, else ``warm`` (the warm plan's result); the
+    iterations of both solves are counted."""
+    from planner.plan import OutOfReach
+    from planner.verify.verifier import verify
+
+    try:
+        plan = planner.plan(state, None, deadline)
+    except OutOfReach:
+        return warm
+    cold = result_from_plan(point, plan, verify(plan))
+    kept = cold if cold.status is PointStatus.FEASIBLE else warm
+    return replace(kept, iterations=warm.iterations + cold.iterations)
 
 
 def _planner(scenario_path: str, max_wall_s: float | None) -> Planner:
@@ -113,7 +136,9 @@ def main(argv: list[str]) -> int:
     args = load_npz(Path(in_path))
     warm = parameters_from_fields({k[len(WARM_PREFIX):]: v for k, v in args.items() if k.startswith(WARM_PREFIX)})
     point = int(args["point"])
-    extra = {key: float(args[key]) for key in ("max_wall_s", "deadline_at_s") if key in args}
+    extra: dict[str, Any] = {key: float(args[key]) for key in ("max_wall_s", "deadline_at_s") if key in args}
+    if args.get("cold_fallback"):
+        extra["cold_fallback"] = True
     try:
         rec = solver(str(args["scenario_path"]), point, args["attitude_wxyz"], args["omega_body_rad_s"], warm,
                      float(args["warm_shift_s"]), **extra)

@@ -20,7 +20,8 @@ from planner.plan_parameters import PlanParameters
 
 
 def solve(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64], omega_body_rad_s: NDArray[np.float64],
-          warm: PlanParameters | None, warm_shift_s: float, max_wall_s: float | None = None) -> Record:
+          warm: PlanParameters | None, warm_shift_s: float, max_wall_s: float | None = None,
+          deadline_at_s: float | None = None, cold_fallback: bool = False) -> Record:
     """The solver protocol of :func:`lut.solve.point_worker.solve_point`, answered without an NLP."""
     if os.environ.get("LUTGEN_FAKE_RAISE") == str(point):
         raise RuntimeError(f"injected failure at point {point}")

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[3]
 GRIDS = ROOT / "configs" / "grids"
 SCEN_I = ROOT / "configs" / "scenarios" / "scenario_I.toml"
 SCEN_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
-BUNDLED = {"ci": 4, "demo": 12, "flat_spin": 1092, "tumble": 1125}
+BUNDLED = {"ci": 4, "ci_optimal": 4, "demo": 12, "flat_spin": 1092, "tumble": 1125}
 # a three-axis flat-spin grid (3 rates × 2 spin-axis angles × 4 phases) owned by the tests
 THREE_AXES = """
 name = "three_axes"
@@ -63,7 +63,7 @@ def grids(scenarios):
     out = {}
     for name in BUNDLED:
         config = load_grid(GRIDS / f"{name}.toml")
-        sc = scenarios[config.scenario_path]
+        sc = scenarios.get(config.scenario_path) or load_scenario(config.scenario_path)
         out[name] = Grid(config, sc.target.inertia_body_kg_m2, _default(sc))
     config = load_grid_text(THREE_AXES, str(GRIDS / "three_axes.toml"))
     out["three_axes"] = Grid(config, scenarios[SCEN_II].target.inertia_body_kg_m2, _default(scenarios[SCEN_II]))
@@ -80,6 +80,7 @@ def _same_state(a: TargetState, b: TargetState) -> float:
 
 
 def test_bundled_configs_load_with_expected_sizes(grids):
+    assert sorted(p.stem for p in GRIDS.glob("*.toml")) == sorted(BUNDLED)  # a new bundled grid is tested too
     for name, n in BUNDLED.items():
         g = grids[name]
         assert g.n_points == n == math.prod(g.shape), name
@@ -423,8 +424,10 @@ def test_continuation_order_covers_every_point_after_its_parent(grids, name):
     for k, (p, parent) in enumerate(order[1:], start=1):
         assert parent is not None and position[parent] < k and parent in g.neighbours(p), (p, parent)
     assert g.continuation_order() == order  # deterministic
-    if g.kind == "flat_spin":  # the seed is the scenario default (4 °/s about +z, phase 0)
+    if g.kind == "flat_spin" and g.default_coordinates is not None:  # the scenario default: 4 °/s about +z, phase 0
         np.testing.assert_allclose(g.coordinates(seed), [4.0, 90.0, 0.0])
+    elif g.default_coordinates is None:  # scenario I's default spins about the orbit normal: the grid's centre
+        assert g.index_of(seed) == tuple(n // 2 for n in g.shape)
 
 
 def _full_turn_grid(scenarios, axes: dict[str, tuple[float, float, int]], kind: str = "flat_spin") -> Grid:

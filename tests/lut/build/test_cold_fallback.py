@@ -1,0 +1,69 @@
+"""A build point warm-started from a neighbour whose plan verify refuses is planned again cold, and the cold plan
+is kept only if it is feasible (a neighbour's solution can lead into a family that does not work at this point).
+The planner and verify are stand-ins: this checks the worker's decisions, not the NLPs."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import lut.solve.point_worker as worker
+import planner.verify.verifier as verifier
+from lut.table.point_result import PointResult, PointStatus
+from lut.table.records import from_record
+from planner.plan_parameters import ApproachParameters, PlanParameters
+
+WARM = PlanParameters(ApproachParameters(np.zeros(3), np.zeros(2), 10.0, np.zeros((3, 7))), np.zeros(4))
+
+
+class _Planner:
+    """Answers a warm plan and a cold plan with the verdicts the test chose; records the warm starts it got."""
+
+    def __init__(self, warm_ok: bool, cold_ok: bool) -> None:
+        self.scenario = SimpleNamespace(phases=SimpleNamespace(max_start_delay_s=60.0))
+        self.verdicts = {"warm": warm_ok, "cold": cold_ok}
+        self.calls: list[str] = []
+
+    def plan(self, state, warm_start, deadline):
+        self.calls.append("cold" if warm_start is None else "warm")
+        return self.calls[-1]
+
+
+@pytest.fixture
+def stand_ins(monkeypatch):
+    def install(warm_ok: bool, cold_ok: bool) -> _Planner:
+        planner = _Planner(warm_ok, cold_ok)
+        monkeypatch.setattr(worker, "_planner", lambda path, wall: planner)
+        monkeypatch.setattr(verifier, "verify", lambda plan: plan)
+        monkeypatch.setattr(worker, "result_from_plan", lambda point, plan, report: PointResult(
+            point, PointStatus.FEASIBLE if planner.verdicts[plan] else PointStatus.INFEASIBLE, plan, 1.0,
+            iterations=10 if plan == "warm" else 20, parameters=WARM))  # the reason field names the plan kept
+        return planner
+
+    return install
+
+
+def _solve(warm, cold_fallback: bool) -> PointResult:
+    return from_record(worker.solve_point("s.toml", 3, np.array([1.0, 0, 0, 0]), np.radians([0, 0, 4.0]), warm, 0.0,
+                                          cold_fallback=cold_fallback))
+
+
+@pytest.mark.parametrize("warm_ok, cold_ok, calls, kept, iterations", [
+    (True, True, ["warm"], "warm", 10),  # a feasible warm plan is the answer: no cold plan
+    (False, True, ["warm", "cold"], "cold", 30),  # the cold plan rescues the point; both solves counted
+    (False, False, ["warm", "cold"], "warm", 30),  # neither: the warm plan's verdict stays (the neighbour's family)
+])
+def test_an_infeasible_warm_plan_is_followed_by_a_cold_one(stand_ins, warm_ok, cold_ok, calls, kept, iterations):
+    planner = stand_ins(warm_ok, cold_ok)
+    result = _solve(WARM, cold_fallback=True)
+    assert planner.calls == calls and result.iterations == iterations
+    assert result.failure_reason == kept and (result.status is PointStatus.FEASIBLE) == (warm_ok or cold_ok)
+
+
+def test_without_the_fallback_or_a_warm_start_there_is_one_plan(stand_ins):
+    planner = stand_ins(False, True)
+    assert _solve(WARM, cold_fallback=False).status is PointStatus.INFEASIBLE and planner.calls == ["warm"]
+    planner = stand_ins(False, True)
+    assert _solve(None, cold_fallback=True).status is PointStatus.FEASIBLE and planner.calls == ["cold"]
