@@ -83,9 +83,12 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     planner = Planner(sc)
     click.echo(f"  built in {planner.build_time_s:.1f} s; solving…", err=True)
     try:
+        if deadline.passed:  # nothing was solved, so there is nothing to verify: say so at once
+            raise NoPlan(f"the time budget of {budget_s:g} s ran out while the problems were built "
+                         f"({time.monotonic() - started_s:.1f} s)")
         result = planner.plan(state, deadline=deadline)
-    except OutOfReach as exc:  # proved infeasible before solving: no trajectory to verify or export
-        click.echo(f"INFEASIBLE ({exc.elapsed_s:.1f} s): {exc}", err=True)
+    except (OutOfReach, NoPlan) as exc:  # no trajectory to verify or export
+        click.echo(f"INFEASIBLE ({time.monotonic() - started_s:.1f} s): {exc}", err=True)
         if out_path or csv_path:
             click.echo("no plan written: there is no trajectory to export", err=True)
         sys.exit(ExitCode.INFEASIBLE)
@@ -97,6 +100,10 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     for line in summary_lines(report):
         click.echo(line)
     export_and_verdict(result, report, out_path, csv_path)
+
+
+class NoPlan(Exception):
+    """No plan was made (``str()`` says why): nothing to verify or export."""
 
 
 COMMANDS = (validate, plan)
