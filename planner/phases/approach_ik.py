@@ -7,6 +7,9 @@ limits and the base-offset bounds.
 
 from __future__ import annotations
 
+import hashlib
+from typing import ClassVar
+
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -97,6 +100,24 @@ def _levenberg_marquardt_function(residual: ca.Function, lo: Array, hi: Array, i
     return ca.Function("pose_ik_lm", [x0, p], [x_end, ca.norm_2(r_end[:12])])
 
 
+def _ik_bounds(scenario: Scenario) -> tuple[Array, Array]:
+    """Lower and upper bounds of the IK's unknowns ``[q [rad], b_x, b_z [m]]``."""
+    rob = scenario.robot
+    (bx, bz) = scenario.base_offset_bounds_m
+    # a pinned base component (min = max in the config) is legal: the projection holds it there
+    return (np.concatenate([rob.q_min + 1e-3, [bx[0], bz[0]]]), np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]]))
+
+
+def _ik_key(scenario: Scenario) -> str:
+    """A digest of everything a :class:`PoseIK` of ``scenario`` is made of: the residual's expression graph
+    (robot, θ_in, base-offset guess), the bounds and the reach test's data."""
+    rob = scenario.robot
+    parts = [_ik_residual_function(scenario).serialize().encode(),
+             *(np.asarray(a, dtype=float).tobytes() for a in (*_ik_bounds(scenario), rob.p_base_joint1_m,
+                                                               rob.reach_from_joint1_m))]
+    return hashlib.sha256(b"\0".join(parts)).hexdigest()
+
+
 def pack_ik_parameters(*args: ArrayLike) -> Array:
     """The parameters of :func:`_ik_residual_function` (after x), in its order, as the one vector ``p`` of
     :func:`_levenberg_marquardt_function`: each flattened column-major, as CasADi stores a matrix."""
@@ -106,21 +127,36 @@ def pack_ik_parameters(*args: ArrayLike) -> Array:
 # Levenberg-Marquardt steps per solve: enough for the scan to find the meeting times and tracking nodes a
 # converged least-squares solve finds (the projected-Newton masking is what makes so few enough)
 LM_ITERATIONS = 100
+# PoseIKs :meth:`PoseIK.shared` keeps per process (a planner uses one, two with the approach-energy cost's
+# base-pinned scan); the oldest goes first
+SHARED_IK_LIMIT = 8
 
 
 class PoseIK:
     """Bounded least-squares IK to one pose from a list of starts; None when unreachable."""
 
+    _shared: ClassVar[dict[str, PoseIK]] = {}
+
     def __init__(self, scenario: Scenario) -> None:
         self.fn = _ik_residual_function(scenario)
-        rob = scenario.robot
-        (bx, bz) = scenario.base_offset_bounds_m
-        # a pinned base component (min = max in the config) is legal: the projection holds it there
-        self.lo = np.concatenate([rob.q_min + 1e-3, [bx[0], bz[0]]])
-        self.hi = np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]])
+        self.lo, self.hi = _ik_bounds(scenario)
         self.lm = _levenberg_marquardt_function(self.fn, self.lo, self.hi, LM_ITERATIONS)
-        self.p_joint1 = rob.p_base_joint1_m
-        self.reach_m = rob.reach_from_joint1_m
+        self.p_joint1 = scenario.robot.p_base_joint1_m
+        self.reach_m = scenario.robot.reach_from_joint1_m
+
+    @classmethod
+    def shared(cls, scenario: Scenario) -> PoseIK:
+        """The PoseIK of ``scenario``, built once per process for each robot, θ_in, base-offset guess and bounds.
+
+        Building the Levenberg-Marquardt Function costs a sizeable part of a scan; a PoseIK holds no
+        state between solves, so every scan of the same problem can share one.
+        """
+        key = _ik_key(scenario)
+        if key not in cls._shared:
+            while len(cls._shared) >= SHARED_IK_LIMIT:
+                del cls._shared[next(iter(cls._shared))]
+            cls._shared[key] = cls(scenario)
+        return cls._shared[key]
 
     def out_of_reach(self, p_goal: Array, base_fixed: Array | None, drift: tuple[Array, Array]) -> bool:
         """True when no configuration within the bounds puts the end-effector within REACH_TOLERANCE of
