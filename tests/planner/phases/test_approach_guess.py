@@ -159,3 +159,27 @@ def test_shared_pose_iks_are_bounded_oldest_first(monkeypatch):
     assert len(PoseIK._shared) == 2
     assert PoseIK.shared(variants[2]) is iks[2] and PoseIK.shared(variants[1]) is iks[1]
     assert PoseIK.shared(variants[0]) is not iks[0]  # dropped, built anew
+
+
+def test_compiled_levenberg_marquardt_loop_equals_the_expanded_one_bit_for_bit(monkeypatch):
+    """The scan's IK is a loop over one compiled step; without a compiler it is expanded into one SX Function.
+    Both perform the same floating-point operations in the same order: the same answers to the last bit, from
+    seeded starts around seeded reachable goals (with drift and a fixed base, too)."""
+    from planner.phases.approach_ik import pack_ik_parameters
+
+    sc = load_scenario(SCENARIO_I)
+    fast = PoseIK(sc)
+    monkeypatch.setenv("LUTGEN_COMPILE", "0")
+    expanded = PoseIK(sc)
+    assert fast.lm.is_a("External") and not expanded.lm.is_a("External")
+    fk = fk_function(sc.robot)
+    rng = np.random.default_rng(41)
+    for k in range(8):
+        out = fk(rng.uniform(0.6 * sc.robot.q_min, 0.6 * sc.robot.q_max))
+        drift = (rng.normal(scale=0.02, size=3), quat_to_matrix([1.0, *rng.normal(scale=0.02, size=3)]))
+        p = pack_ik_parameters(np.asarray(out[-1]).ravel(), np.asarray(out[-2]), np.eye(3), 0.02, *drift,
+                               sc.base_offset_guess_m, float(k % 2))
+        x0 = np.clip(np.concatenate([sc.q_initial, sc.base_offset_guess_m]) + rng.normal(scale=0.3, size=9),
+                     fast.lo, fast.hi)
+        for a, b in zip(fast.lm(x0, p), expanded.lm(x0, p), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
