@@ -221,7 +221,7 @@ class _RateLaw:
             null = null + ref[1] + self.K * (ref[0] - q)
         qd += (np.eye(len(q)) - J_pinv @ J) @ (ramp * null)
         qd = self._capped(qd)
-        return qd, at.base_pose_rate(qd, x)
+        return qd, self.kinematics.base_pose_rate(q, qd, x)
 
     def _capped(self, qd: Array) -> Array:
         """``q̇`` scaled (direction kept) into the rate limits by the smooth cap ``q̇ / (1 + r^p)^(1/p)``.
