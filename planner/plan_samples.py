@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
-from planner.model.compound import compound_robot
+from planner.model.compound import compound_robot, grasp_geometry
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.rotation import axis_angle_to_matrix
 from planner.model.target import TargetMotion
@@ -21,6 +21,7 @@ from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.phase_spline import approach_vertices, stabilization_vertices
 from planner.phases.approach import ApproachSolution
 from planner.phases.stabilization import GraspState, StabilizationSolution, grasp_momentum_world
+from planner.phases.stabilization_dynamics import compound_rk4_step
 from planner.phases.tracking import TrackingResult
 
 Array = NDArray[np.float64]
@@ -90,7 +91,9 @@ def grasp_state(scenario: Scenario, ff: FreeFloatingModel, tr: TrackingResult,
         T_bg[:3, :3] = T_bg[:3, :3] @ axis_angle_to_matrix(axis, tr.free_axis_angle_rad)
     T_ee_target = np.linalg.inv(T_bg)  # the ee frame coincides with the grasp frame at the grasp
     q, qd, x = tr.q[-1], tr.qd[-1], tr.x_base[-1]
-    compound = FreeFloatingModel(compound_robot(sc, T_ee_target))
+    # the dense re-simulation of the stabilization steps with the compiled compound step (geometry as parameters)
+    compound = FreeFloatingModel(compound_robot(sc, T_ee_target),
+                                 parametric_rk4=(compound_rk4_step(sc.robot), grasp_geometry(sc, T_ee_target)))
     h_world = grasp_momentum_world(ff, compound, q, qd, x)
     qdd = tr.qdd_end if sc.stabilization.start_acceleration == "continuous" else np.zeros_like(qd)
     return GraspState(q, qd, qdd, x, h_world, T_ee_target), T_bg, compound

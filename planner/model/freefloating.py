@@ -164,6 +164,9 @@ class FreeFloatingModel:
 
     robot: RobotModel
     compile_rk4: bool = False
+    # the dense re-simulation's RK4 step with parameters as last input (a compound's compiled step, its grasp
+    # geometry the parameters), used instead of this model's own step when given
+    parametric_rk4: tuple[ca.Function, Array] | None = None
     momentum: ca.Function = field(init=False)
     base_twist: ca.Function = field(init=False)
     gen_jacobian: ca.Function = field(init=False)
@@ -223,9 +226,13 @@ class FreeFloatingModel:
         steps = len(t) - 1
         if steps == 0:
             return xs
-        run = self.rk4_step.mapaccum("rk4_base_steps", steps)
+        step, extra = self.rk4_step, []
+        if self.parametric_rk4 is not None:
+            step, parameters = self.parametric_rk4
+            extra = [np.tile(np.asarray(parameters, dtype=float)[:, None], (1, steps))]
+        run = step.mapaccum("rk4_base_steps", steps)
         xs[1:] = np.asarray(run(x0, q[:-1].T, qd[:-1].T, q_mid.T, qd_mid.T, q[1:].T, qd[1:].T,
-                                np.tile(h[:, None], (1, steps)), np.diff(t)[None, :])).T
+                                np.tile(h[:, None], (1, steps)), np.diff(t)[None, :], *extra)).T
         return xs
 
 

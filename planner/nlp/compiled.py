@@ -59,17 +59,18 @@ def compile_enabled() -> bool:
     return os.environ.get("LUTGEN_COMPILE", "1").strip().lower() not in ("0", "false", "no", "off")
 
 
-def compiled(f: ca.Function, options: dict | None = None) -> ca.Function:
+def compiled(f: ca.Function, options: dict | None = None, with_jacobian: bool = True) -> ca.Function:
     """``f`` (an SX Function) with its Jacobian, compiled and loaded, or ``f`` itself if that is not possible.
 
-    ``options``: Function options the returned Function keeps (e.g. ``jac_penalty``).
+    ``options``: Function options the returned Function keeps (e.g. ``jac_penalty``). ``with_jacobian=False``:
+    ``f`` alone, for a Function only evaluated numerically (its Jacobian may be far larger to compile).
     """
     if not compile_enabled():
         return f
     compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         return _fall_back(f, "no C compiler found (set CC, or install gcc)")
-    jacobian = f.jacobian()
+    jacobian = f.jacobian() if with_jacobian else None
     problem = ""
     for attempt in range(2):  # a cached library that cannot be loaded or disagrees is compiled once more
         try:
@@ -82,23 +83,24 @@ def compiled(f: ca.Function, options: dict | None = None) -> ca.Function:
                 return loaded
             problem = f"the compiled {library.name} disagrees with the interpreted Function"
             del loaded  # unloads it: a library still loaded would be found again by the next dlopen of its path
-        if attempt == 1 or not _discard_cached(f, compiler):
+        if attempt == 1 or not _discard_cached(f, compiler, with_jacobian):
             break
     return _fall_back(f, problem)
 
 
-def _cache_paths(f: ca.Function, compiler: str) -> tuple[Path, Path]:
-    """The cached library of ``f`` for ``compiler`` and its lock file (named by a hash of the expression graph)."""
+def _cache_paths(f: ca.Function, compiler: str, with_jacobian: bool = True) -> tuple[Path, Path]:
+    """The cached library of ``f`` (and its Jacobian) for ``compiler`` and its lock file (named by a hash of the
+    expression graph)."""
     key = hashlib.sha256("\0".join([f.serialize(), ca.__version__, compiler, *COMPILE_FLAGS]).encode())
-    stem = f"{f.name()}-{key.hexdigest()[:24]}"
+    stem = f"{f.name()}-{key.hexdigest()[:24]}" + ("" if with_jacobian else "-nojac")
     folder = cache_dir()
     return folder / f"{stem}.so", folder / f"{stem}.lock"
 
 
-def _discard_cached(f: ca.Function, compiler: str) -> bool:
+def _discard_cached(f: ca.Function, compiler: str, with_jacobian: bool) -> bool:
     """Delete the cached library of ``f`` (broken: truncated, foreign, or giving other numbers), under its
     lock; True when there was one to delete, so compiling again may help."""
-    library, lock_path = _cache_paths(f, compiler)
+    library, lock_path = _cache_paths(f, compiler, with_jacobian)
     if not library.is_file():
         return False
     with open(lock_path, "w") as lock:
@@ -107,10 +109,10 @@ def _discard_cached(f: ca.Function, compiler: str) -> bool:
     return True
 
 
-def _library(f: ca.Function, jacobian: ca.Function, compiler: str) -> Path:
-    """The cached shared library of ``f`` and its Jacobian, compiled first if missing."""
+def _library(f: ca.Function, jacobian: ca.Function | None, compiler: str) -> Path:
+    """The cached shared library of ``f`` and its Jacobian (if not None), compiled first if missing."""
     name = f.name()
-    library, lock_path = _cache_paths(f, compiler)
+    library, lock_path = _cache_paths(f, compiler, jacobian is not None)
     folder = library.parent
     folder.mkdir(parents=True, exist_ok=True)
     if library.is_file():
@@ -121,7 +123,8 @@ def _library(f: ca.Function, jacobian: ca.Function, compiler: str) -> Path:
             return library
         generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
         generator.add(f)
-        generator.add(jacobian)
+        if jacobian is not None:
+            generator.add(jacobian)
         with tempfile.TemporaryDirectory(dir=folder, prefix=f".{name}-") as scratch:
             c_file = Path(scratch) / f"{name}.c"
             c_file.write_text(generator.dump())
@@ -136,14 +139,15 @@ def _library(f: ca.Function, jacobian: ca.Function, compiler: str) -> Path:
     return library
 
 
-def _agrees(f: ca.Function, jacobian: ca.Function, loaded: ca.Function) -> bool:
-    """Both Functions, and their Jacobians, give the same numbers at a fixed point (seeded)."""
+def _agrees(f: ca.Function, jacobian: ca.Function | None, loaded: ca.Function) -> bool:
+    """Both Functions, and their Jacobians (when compiled with one), give the same numbers at a fixed point (seeded)."""
     rng = np.random.default_rng(0)
     args = [rng.uniform(0.5, 1.5, f.size_in(i)) for i in range(f.n_in())]
     outs = f(*args)
     outs = [outs] if f.n_out() == 1 else list(outs)
     pairs = list(zip(outs, [loaded(*args)] if f.n_out() == 1 else loaded(*args), strict=True))
-    pairs += zip(jacobian(*args, *outs), loaded.jacobian()(*args, *outs), strict=True)
+    if jacobian is not None:
+        pairs += zip(jacobian(*args, *outs), loaded.jacobian()(*args, *outs), strict=True)
     for a, b in pairs:
         a, b = np.asarray(ca.DM(a)), np.asarray(ca.DM(b))
         scale = max(1.0, float(np.nanmax(np.abs(a), initial=0)))

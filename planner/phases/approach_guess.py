@@ -154,7 +154,7 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     rng = np.random.default_rng(IK_SEED)
     extra_starts = [np.concatenate([rng.uniform(0.6 * robot.q_min, 0.6 * robot.q_max), sc.base_offset_guess_m])
                     for _ in range(IK_EXTRA_STARTS)]
-    ctx = _Scan(sc, motion, fk_function(robot), build_scene(sc), PoseIK(sc),
+    ctx = _Scan(sc, motion, fk_function(robot), build_scene(sc), PoseIK.shared(sc),
                 np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)]),
                 np.concatenate([sc.q_initial, sc.base_offset_guess_m]), extra_starts)
     x_prev = ctx.x_home

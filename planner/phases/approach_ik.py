@@ -7,12 +7,16 @@ limits and the base-offset bounds.
 
 from __future__ import annotations
 
+import hashlib
+from typing import ClassVar
+
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planner.config.scenario import Scenario
 from planner.model.robot import fk_function
+from planner.nlp.compiled import compiled
 
 Array = NDArray[np.float64]
 
@@ -56,20 +60,44 @@ def _levenberg_marquardt_function(residual: ca.Function, lo: Array, hi: Array, i
     (the :func:`_ik_residual_function` signature, its parameters packed into one vector ``p``, matrices
     column-major), compiled into one CasADi Function; ``pose_error`` is the norm of the pose rows at x.
 
-    Each step solves ``(JᵀJ + λ D) δ = −Jᵀr`` with ``D = diag(JᵀJ)`` (Marquardt's scaling) over the
+    Each step (:func:`_lm_step_function`) is one SX Function; the steps are a loop over it (an MX fold),
+    compiled to C (:mod:`planner.nlp.compiled`): a whole solve is one call, where
+    ``scipy.optimize.least_squares`` would iterate in Python, and the loop keeps the C source small (an SX
+    graph would hold every step unrolled). Without a compiler the loop is expanded into one SX Function.
+    """
+    step_fn, p = _lm_step_function(residual, lo, hi)
+    nx = residual.size1_in(0)
+    x_sym = ca.SX.sym("x", nx)
+    error_fn = ca.Function("lm_pose_error", [x_sym, p], [ca.norm_2(residual(x_sym, *_unpacked(residual, p))[0][:12])])
+    x0, P = ca.MX.sym("x0", nx), ca.MX.sym("p", p.numel())
+    start = ca.vertcat(ca.fmin(ca.fmax(x0, ca.DM(lo)), ca.DM(hi)), 1e-3, 2.0)
+    x_end = step_fn.fold(iterations)(start, ca.repmat(P, 1, iterations))[:nx]
+    lm = ca.Function("pose_ik_lm", [x0, P], [x_end, error_fn(x_end, P)])
+    fast = compiled(lm, with_jacobian=False)
+    return fast if fast.is_a("External") else lm.expand()
+
+
+def _unpacked(residual: ca.Function, p: ca.SX) -> list[ca.SX]:
+    """``residual``'s parameters (its inputs after x) cut out of the one vector ``p``, matrices column-major."""
+    args, offset = [], 0
+    for sp in (residual.sparsity_in(i) for i in range(1, residual.n_in())):
+        args.append(ca.reshape(p[offset: offset + sp.numel()], sp.size1(), sp.size2()))
+        offset += sp.numel()
+    return args
+
+
+def _lm_step_function(residual: ca.Function, lo: Array, hi: Array) -> tuple[ca.Function, ca.SX]:
+    """``(state = [x, λ, ν], p) -> state``: one projected Levenberg-Marquardt step, and the symbol ``p``.
+
+    The step solves ``(JᵀJ + λ D) δ = −Jᵀr`` with ``D = diag(JᵀJ)`` (Marquardt's scaling) over the
     variables not held by an active bound (projected Newton: a variable on a bound whose gradient points
     outward stays put), projects ``x + δ`` onto ``[lo, hi]`` and keeps it if the squared residual fell.
     λ follows Nielsen's rule (the ratio ρ of actual to predicted decrease: λ·max(1/3, 1 − (2ρ−1)³) on
-    success; λ·ν, ν doubling, on failure). Compiled, a whole solve is one call: a scan makes hundreds of
-    these 9-unknown solves, where ``scipy.optimize.least_squares`` would iterate in Python.
+    success; λ·ν, ν doubling, on failure).
     """
     nx = residual.size1_in(0)
-    parts = [residual.sparsity_in(i) for i in range(1, residual.n_in())]
-    p = ca.SX.sym("p", sum(sp.numel() for sp in parts))
-    args, offset = [], 0
-    for sp in parts:
-        args.append(ca.reshape(p[offset: offset + sp.numel()], sp.size1(), sp.size2()))
-        offset += sp.numel()
+    p = ca.SX.sym("p", sum(residual.numel_in(i) for i in range(1, residual.n_in())))
+    args = _unpacked(residual, p)
     x = ca.SX.sym("x", nx)
     lam, nu = ca.SX.sym("lambda"), ca.SX.sym("nu")
     r, J = residual(x, *args)
@@ -87,14 +115,27 @@ def _levenberg_marquardt_function(residual: ca.Function, lo: Array, hi: Array, i
     better = decrease > 0
     lam_next = ca.if_else(better, lam * ca.fmax(1.0 / 3.0, 1 - (2 * rho - 1) ** 3), lam * nu)
     state = ca.vertcat(x, lam, nu)
-    step_fn = ca.Function("lm_step", [state, p],
-                          [ca.vertcat(ca.if_else(better, x_try, x), ca.fmin(ca.fmax(lam_next, 1e-12), 1e12),
-                                      ca.if_else(better, 2.0, 2.0 * nu))])
-    x0 = ca.SX.sym("x0", nx)
-    start = ca.vertcat(ca.fmin(ca.fmax(x0, ca.DM(lo)), ca.DM(hi)), 1e-3, 2.0)
-    x_end = step_fn.fold(iterations)(start, ca.repmat(p, 1, iterations))[:nx]
-    r_end, _ = residual(x_end, *args)
-    return ca.Function("pose_ik_lm", [x0, p], [x_end, ca.norm_2(r_end[:12])])
+    return ca.Function("lm_step", [state, p],
+                       [ca.vertcat(ca.if_else(better, x_try, x), ca.fmin(ca.fmax(lam_next, 1e-12), 1e12),
+                                   ca.if_else(better, 2.0, 2.0 * nu))]), p
+
+
+def _ik_bounds(scenario: Scenario) -> tuple[Array, Array]:
+    """Lower and upper bounds of the IK's unknowns ``[q [rad], b_x, b_z [m]]``."""
+    rob = scenario.robot
+    (bx, bz) = scenario.base_offset_bounds_m
+    # a pinned base component (min = max in the config) is legal: the projection holds it there
+    return (np.concatenate([rob.q_min + 1e-3, [bx[0], bz[0]]]), np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]]))
+
+
+def _ik_key(scenario: Scenario) -> str:
+    """A digest of everything a :class:`PoseIK` of ``scenario`` is made of: the residual's expression graph
+    (robot, θ_in, base-offset guess), the bounds and the reach test's data."""
+    rob = scenario.robot
+    parts = [_ik_residual_function(scenario).serialize().encode(),
+             *(np.asarray(a, dtype=float).tobytes() for a in (*_ik_bounds(scenario), rob.p_base_joint1_m,
+                                                               rob.reach_from_joint1_m))]
+    return hashlib.sha256(b"\0".join(parts)).hexdigest()
 
 
 def pack_ik_parameters(*args: ArrayLike) -> Array:
@@ -106,21 +147,36 @@ def pack_ik_parameters(*args: ArrayLike) -> Array:
 # Levenberg-Marquardt steps per solve: enough for the scan to find the meeting times and tracking nodes a
 # converged least-squares solve finds (the projected-Newton masking is what makes so few enough)
 LM_ITERATIONS = 100
+# PoseIKs :meth:`PoseIK.shared` keeps per process (a planner uses one, two with the approach-energy cost's
+# base-pinned scan); the oldest goes first
+SHARED_IK_LIMIT = 8
 
 
 class PoseIK:
     """Bounded least-squares IK to one pose from a list of starts; None when unreachable."""
 
+    _shared: ClassVar[dict[str, PoseIK]] = {}
+
     def __init__(self, scenario: Scenario) -> None:
         self.fn = _ik_residual_function(scenario)
-        rob = scenario.robot
-        (bx, bz) = scenario.base_offset_bounds_m
-        # a pinned base component (min = max in the config) is legal: the projection holds it there
-        self.lo = np.concatenate([rob.q_min + 1e-3, [bx[0], bz[0]]])
-        self.hi = np.concatenate([rob.q_max - 1e-3, [bx[1], bz[1]]])
+        self.lo, self.hi = _ik_bounds(scenario)
         self.lm = _levenberg_marquardt_function(self.fn, self.lo, self.hi, LM_ITERATIONS)
-        self.p_joint1 = rob.p_base_joint1_m
-        self.reach_m = rob.reach_from_joint1_m
+        self.p_joint1 = scenario.robot.p_base_joint1_m
+        self.reach_m = scenario.robot.reach_from_joint1_m
+
+    @classmethod
+    def shared(cls, scenario: Scenario) -> PoseIK:
+        """The PoseIK of ``scenario``, built once per process for each robot, θ_in, base-offset guess and bounds.
+
+        Building the Levenberg-Marquardt Function costs a sizeable part of a scan; a PoseIK holds no
+        state between solves, so every scan of the same problem can share one.
+        """
+        key = _ik_key(scenario)
+        if key not in cls._shared:
+            while len(cls._shared) >= SHARED_IK_LIMIT:
+                del cls._shared[next(iter(cls._shared))]
+            cls._shared[key] = cls(scenario)
+        return cls._shared[key]
 
     def out_of_reach(self, p_goal: Array, base_fixed: Array | None, drift: tuple[Array, Array]) -> bool:
         """True when no configuration within the bounds puts the end-effector within REACH_TOLERANCE of

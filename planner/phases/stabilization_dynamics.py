@@ -110,7 +110,26 @@ class InnerFunctions:
     @staticmethod
     def of(robot: RobotModel) -> InnerFunctions:
         """Build them, the RK4 step and the wrench compiled to C (:mod:`planner.nlp.compiled`)."""
-        geometry = ca.SX.sym("geometry", GEOMETRY_SIZE)
-        return InnerFunctions(compiled(rk4_step_function(GraspGeometry.unpack(geometry).compound(robot), geometry)),
+        return InnerFunctions(compound_rk4_step(robot),
                               compiled(wrench_function(robot), {"jac_penalty": JACOBIAN_FIRST_PENALTY}),
                               fk_function(robot))
+
+
+# compound RK4 steps compound_rk4_step keeps per process (one per robot model object); the oldest goes first
+COMPOUND_STEPS_KEPT = 4
+_compound_steps: dict[int, tuple[RobotModel, ca.Function]] = {}
+
+
+def compound_rk4_step(robot: RobotModel) -> ca.Function:
+    """:func:`rk4_step_function` of the compound of ``robot`` and any grasped target, the grasp geometry
+    (:mod:`planner.model.compound`) as last input, compiled; made once per process for each robot object (the
+    stabilization NLP and every plan's dense re-simulation of its stabilization share it)."""
+    kept = _compound_steps.get(id(robot))
+    if kept is not None and kept[0] is robot:
+        return kept[1]
+    while len(_compound_steps) >= COMPOUND_STEPS_KEPT:
+        del _compound_steps[next(iter(_compound_steps))]
+    geometry = ca.SX.sym("geometry", GEOMETRY_SIZE)
+    step = compiled(rk4_step_function(GraspGeometry.unpack(geometry).compound(robot), geometry))
+    _compound_steps[id(robot)] = (robot, step)  # the robot is kept too: its id is not reused while it is here
+    return step

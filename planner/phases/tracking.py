@@ -21,17 +21,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.interpolate import CubicHermiteSpline
 
 from planner.config.scenario import Scenario
-from planner.model.freefloating import FreeFloatingModel, quat_to_rotation_sym
-from planner.model.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.model.freefloating import FreeFloatingModel
+from planner.model.rotation import axis_angle_to_matrix
 from planner.model.target import TargetMotion
-from planner.nlp.costs import manipulability_sym
+from planner.phases.tracking_kinematics import KinematicsAt, TrackingKinematics
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend, gain_ramp
 
 Array = NDArray[np.float64]
@@ -71,21 +70,12 @@ def free_axis_angle(R_world_grasp: Array, R_world_ee: Array, axis: Array | None)
 
 
 class TrackingController:
-    """The IK law of the module docstring for one scenario (CasADi Functions built once)."""
+    """The IK law of the module docstring for one scenario (its kinematics compiled once)."""
 
     def __init__(self, scenario: Scenario, ff: FreeFloatingModel) -> None:
         self.scenario = scenario
         self.ff = ff
-        n = scenario.robot.n_joints
-        q = ca.SX.sym("q", n)
-        x = ca.SX.sym("x_base", 7)
-        J_star, _, R_ee, p_ee = ff.gen_jacobian(q)
-        R_wb = quat_to_rotation_sym(x[3:7])
-        J_world = ca.vertcat(ca.mtimes(R_wb, J_star[:3, :]), ca.mtimes(R_wb, J_star[3:, :]))
-        w = manipulability_sym(J_star)
-        self.kinematics = ca.Function(
-            "tracking_kinematics", [q, x],
-            [J_world, ca.mtimes(R_wb, R_ee), x[:3] + ca.mtimes(R_wb, p_ee), ca.gradient(w, q)])
+        self.kinematics = TrackingKinematics.of(ff)
 
     def simulate(self, motion: TargetMotion, t_start_s: float, q0: Array, x_base0: Array,
                  q_nodes: Array | None = None) -> TrackingResult:
@@ -100,35 +90,37 @@ class TrackingController:
         T = sc.phases.tracking_s
         steps = int(np.ceil(T / sc.tracking.step_s))
         dt = T / steps
-        R_ee0, p_ee0 = (np.asarray(a) for a in self.kinematics(q0, x_base0)[1:3])
-        desired = _DesiredPose(sc, motion, t_start_s, R_ee0, p_ee0.ravel(), _stage_times(steps, dt))
-        law = _RateLaw(self, desired, _posture_reference(q0, q_nodes, T))
+        kinematics = self.kinematics.evaluator()  # this simulation's own buffers
+        at0 = kinematics(q0, x_base0)
+        desired = _DesiredPose(sc, motion, t_start_s, at0.R_world_ee, at0.p_world_ee_m, _stage_times(steps, dt))
+        law = _RateLaw(sc, kinematics, desired, _posture_reference(q0, q_nodes, T))
         ts = t_start_s + dt * np.arange(steps + 1)
         qs, qds, xs, xd_end = _integrate(law, desired.stages, steps, dt, q0, x_base0)
         # joint acceleration at the grasp instant: derivative of q̇ along the closed-loop flow
         eps = 1e-4
         qd_back, _ = law.rates(T - eps, qs[-1] - eps * qds[-1], xs[-1] - eps * xd_end)
         qdd_end = (qds[-1] - qd_back) / eps
-        return self._result(motion, desired, ts, qs, qds, xs, qdd_end, law.peak_demand)
+        return _result(law.kinematics(qs[-1], xs[-1]), motion, desired, ts, qs, qds, xs, qdd_end, law.peak_demand)
 
-    def _result(self, motion: TargetMotion, desired: _DesiredPose, ts: Array, qs: Array, qds: Array, xs: Array,
-                qdd_end: Array, peak_demand: float) -> TrackingResult:
-        """The trajectory with the relative pose and twist of the ee and the grasp frame at the grasp instant."""
-        _, R_ee, p_ee, _ = (np.asarray(a) for a in self.kinematics(qs[-1], xs[-1]))
-        R_g, p_g = (a[0] for a in motion.grasp_pose(ts[-1]))
-        v_g, w_g = (a[0] for a in motion.grasp_twist(ts[-1]))
-        J = np.asarray(self.kinematics(qs[-1], xs[-1])[0])
-        twist_ee = J @ qds[-1]
-        # the grasp point's velocity at the ee origin (rigid target): v_g + ω × (p_ee − p_g)
-        v_rel = twist_ee[:3] - (v_g + np.cross(w_g, p_ee.ravel() - p_g))
-        return TrackingResult(
-            t=ts, q=qs, qd=qds, qdd_end=qdd_end, x_base=xs, free_axis_angle_rad=desired.psi,
-            position_error_m=float(np.linalg.norm(p_ee.ravel() - p_g)),
-            orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ desired.R_free).T @ R_ee))),
-            relative_velocity_m_s=float(np.linalg.norm(v_rel)),
-            relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
-            peak_rate_demand=peak_demand,
-        )
+
+def _result(at: KinematicsAt, motion: TargetMotion, desired: _DesiredPose, ts: Array, qs: Array, qds: Array, xs: Array,
+            qdd_end: Array, peak_demand: float) -> TrackingResult:
+    """The trajectory with the relative pose and twist of the ee (kinematics ``at`` the end) and the grasp frame
+    at the grasp instant."""
+    R_ee, p_ee = at.R_world_ee, at.p_world_ee_m
+    R_g, p_g = (a[0] for a in motion.grasp_pose(ts[-1]))
+    v_g, w_g = (a[0] for a in motion.grasp_twist(ts[-1]))
+    twist_ee = at.J_world @ qds[-1]
+    # the grasp point's velocity at the ee origin (rigid target): v_g + ω × (p_ee − p_g)
+    v_rel = twist_ee[:3] - (v_g + np.cross(w_g, p_ee - p_g))
+    return TrackingResult(
+        t=ts, q=qs, qd=qds, qdd_end=qdd_end, x_base=xs, free_axis_angle_rad=desired.psi,
+        position_error_m=float(np.linalg.norm(p_ee - p_g)),
+        orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ desired.R_free).T @ R_ee))),
+        relative_velocity_m_s=float(np.linalg.norm(v_rel)),
+        relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
+        peak_rate_demand=peak_demand,
+    )
 
 
 class _DesiredPose:
@@ -193,11 +185,9 @@ def _posture_reference(q0: Array, q_nodes: Array | None, T: float) -> CubicHermi
 class _RateLaw:
     """The IK law: joint rates [rad/s] and base-pose rate at phase time t, with the smooth rate cap."""
 
-    def __init__(self, controller: TrackingController, desired: _DesiredPose,
+    def __init__(self, sc: Scenario, kinematics: TrackingKinematics, desired: _DesiredPose,
                  q_ref: CubicHermiteSpline | None) -> None:
-        sc = controller.scenario
-        self.kinematics = controller.kinematics
-        self.ff = controller.ff
+        self.kinematics = kinematics
         self.desired = desired
         self.q_ref = q_ref
         self.q_ref_d = None if q_ref is None else q_ref.derivative()
@@ -206,21 +196,32 @@ class _RateLaw:
         self.T = sc.phases.tracking_s
         self.qd_max = sc.robot.qd_max
         self.peak_demand = 0.0  # max over the calls of |q̇ asked by the law| / q̇_max, before the cap
+        # what depends on the time alone, at every RK4 stage in one batch (the integration asks for each twice)
+        stages = list(dict.fromkeys(desired.stages))
+        refs = [None] * len(stages) if q_ref is None else zip(q_ref(stages), self.q_ref_d(stages), strict=True)
+        self.at_stage = {t: (gain_ramp(t, self.T), ref) for t, ref in zip(stages, refs, strict=True)}
+
+    def _time_terms(self, t: float) -> tuple[float, tuple[Array, Array] | None]:
+        """The gain ramp and the posture reference ``(q_ref, q̇_ref)`` [rad, rad/s] (None without one) at ``t``."""
+        if t in self.at_stage:
+            return self.at_stage[t]
+        return gain_ramp(t, self.T), None if self.q_ref is None else (self.q_ref(t), self.q_ref_d(t))
 
     def rates(self, t: float, q: Array, x: Array) -> tuple[Array, Array]:
         """``q̇`` (7,) [rad/s] and ``ẋ_base`` (7,) at phase time ``t`` [s], joints ``q``, base pose ``x``."""
-        J, R_ee, p_ee, grad_w = (np.asarray(a) for a in self.kinematics(q, x))
+        at = self.kinematics(q, x)
+        J = at.J_world
         R_d, p_d = self.desired.pose(t)
-        e = np.concatenate([p_d - p_ee.ravel(), pin.log3(R_d @ R_ee.T)])
-        ramp = gain_ramp(t, self.T)
+        e = np.concatenate([p_d - at.p_world_ee_m, pin.log3(R_d @ at.R_world_ee.T)])
+        ramp, ref = self._time_terms(t)
         J_pinv = np.linalg.pinv(J)
         qd = J_pinv @ (self.desired.twist(t) + self.K * ramp * e)
-        null = self.kn * grad_w.ravel()
-        if self.q_ref is not None:
-            null = null + self.q_ref_d(t) + self.K * (self.q_ref(t) - q)
+        null = self.kn * at.grad_manipulability
+        if ref is not None:
+            null = null + ref[1] + self.K * (ref[0] - q)
         qd += (np.eye(len(q)) - J_pinv @ J) @ (ramp * null)
         qd = self._capped(qd)
-        return qd, _base_rate(self.ff, q, qd, x)
+        return qd, self.kinematics.base_pose_rate(q, qd, x)
 
     def _capped(self, qd: Array) -> Array:
         """``q̇`` scaled (direction kept) into the rate limits by the smooth cap ``q̇ / (1 + r^p)^(1/p)``.
@@ -280,14 +281,3 @@ def _grasp_poses_at(motion: TargetMotion, t_start_s: float, times: list[float]) 
     keys = list(dict.fromkeys(times))
     R, p = motion.grasp_pose(t_start_s + np.asarray(keys))
     return {t: (R[i], p[i]) for i, t in enumerate(keys)}
-
-
-def _base_rate(ff: FreeFloatingModel, q: Array, qd: Array, x: Array) -> Array:
-    """Rate of the base pose ``[p, quat]`` under zero momentum (numeric)."""
-    R = quat_to_matrix(x[3:])
-    nu = np.asarray(ff.base_twist(q, qd, np.zeros(6))).ravel()
-    w = nu[3:]
-    qw, qx, qy, qz = x[3:]
-    quat_dot = 0.5 * np.array([-qx * w[0] - qy * w[1] - qz * w[2], qw * w[0] + qy * w[2] - qz * w[1],
-                               qw * w[1] - qx * w[2] + qz * w[0], qw * w[2] + qx * w[1] - qy * w[0]])
-    return np.concatenate([R @ nu[:3], quat_dot])

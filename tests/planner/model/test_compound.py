@@ -94,6 +94,31 @@ def test_parametrised_rk4_step_equals_the_numeric_compound_step(scenario_II):
                                    np.asarray(numeric), rtol=0, atol=1e-13)
 
 
+def test_dense_resimulation_with_the_compiled_parametric_step_follows_the_numeric_compound(scenario_II):
+    """A compound model given the compiled parametric step (``parametric_rk4``, what a plan's stabilization
+    re-simulation uses) integrates the same base poses as the numeric compound's own step, over 200 RK4 steps
+    of a seeded joint motion at each grasp; the compiled step is made once per robot object."""
+    from planner.phases.stabilization_dynamics import compound_rk4_step
+
+    robot = scenario_II.robot
+    step = compound_rk4_step(robot)
+    assert compound_rk4_step(robot) is step
+    t = np.linspace(0.0, 10.0, 201)
+    mids = 0.5 * (t[:-1] + t[1:])
+    a = np.random.default_rng(9).uniform(-0.3, 0.3, 7)
+    q, qd = np.outer(np.sin(t), a), np.outer(np.cos(t), a)
+    q_mid, qd_mid = np.outer(np.sin(mids), a), np.outer(np.cos(mids), a)
+    x0 = np.array([0.5, 0.0, -0.2, 1.0, 0.0, 0.0, 0.0])
+    h = np.array([40.0, -15.0, 8.0, 900.0, -300.0, 2500.0])
+    for T in _grasps(scenario_II):
+        numeric = FreeFloatingModel(compound_robot(scenario_II, T))
+        fast = FreeFloatingModel(compound_robot(scenario_II, T), parametric_rk4=(step, grasp_geometry(scenario_II, T)))
+        x_ref = numeric.integrate_base_sampled(t, q, qd, q_mid, qd_mid, x0, h)
+        x_fast = fast.integrate_base_sampled(t, q, qd, q_mid, qd_mid, x0, h)
+        assert np.abs(x_ref[-1] - x0).max() > 1e-2  # the base really moves
+        np.testing.assert_allclose(x_fast, x_ref, rtol=0, atol=1e-12)
+
+
 def test_grasp_wrench_equals_newton_euler_on_pinocchio_accelerations(scenario_II):
     """The stabilization's grasp wrench (one Function, geometry as a parameter) against an independent route:
     pinocchio's compound model, the base acceleration that keeps the centroidal momentum constant

@@ -6,6 +6,7 @@ A tiny Function compiles in well under a second, so these tests compile for real
 
 from __future__ import annotations
 
+import ctypes
 import os
 import subprocess
 import sys
@@ -57,6 +58,26 @@ def test_compiled_function_and_jacobian_equal_the_interpreted_ones_bit_for_bit(c
     X = ca.MX.sym("X", 3)
     jac = [ca.Function("J", [X], [ca.jacobian(fn(X, ca.DM([0.3, -0.7]))[0], X)]) for fn in (f, g)]
     np.testing.assert_array_equal(np.asarray(jac[0]([0.1, 0.2, 0.3])), np.asarray(jac[1]([0.1, 0.2, 0.3])))
+
+
+def test_without_its_jacobian_a_function_compiles_alone_into_a_library_of_its_own(cache):
+    """``with_jacobian=False``: the same numbers bit for bit, a library of its own (next to the one with the
+    Jacobian, never mistaken for it), and no compiled Jacobian in it (CasADi derives one when asked)."""
+    f = _function()
+    g = compiled(f, with_jacobian=False)
+    assert g.is_a("External")
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        x, p = rng.normal(size=3), rng.normal(size=2)
+        for a, b in zip(f(x, p), g(x, p), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    (alone,) = cache.glob("toy-*.so")
+    assert alone.name.endswith("-nojac.so")
+    compiled(f)
+    (with_jacobian,) = set(cache.glob("toy-*.so")) - {alone}
+    symbols = [ctypes.CDLL(str(lib)) for lib in (alone, with_jacobian)]
+    assert hasattr(symbols[0], "toy") and not hasattr(symbols[0], "jac_toy")
+    assert hasattr(symbols[1], "jac_toy")
 
 
 def test_a_cached_library_is_loaded_without_compiling_again(cache, monkeypatch):

@@ -120,3 +120,66 @@ def test_compiled_levenberg_marquardt_matches_scipy_on_the_scan_ik():
         x_lm, x_ref, args = both(x_lm, POLISH_REGULARISATION)
         pose_lm, pose_ref = (np.linalg.norm(np.asarray(ik.fn(x, *args)[0]).ravel()[:12]) for x in (x_lm, x_ref))
         assert abs(pose_lm - pose_ref) < 1e-5
+
+
+def test_shared_pose_ik_is_one_per_problem_and_solves_as_a_fresh_one():
+    """``PoseIK.shared`` keeps one IK per robot, θ_in, base-offset guess and bounds: a scenario loaded again gets
+    the same object, one with other base bounds (the base-pinned scan) another. The shared IK holds no state
+    between solves, so after solving other poses it answers bit for bit as a freshly built IK does; oracle for
+    reachability: the goals are the FK of seeded configurations."""
+    first, again = load_scenario(SCENARIO_I), load_scenario(SCENARIO_I)
+    pinned = replace(first, base_offset_bounds_m=((0.0, 0.0), (0.0, 0.0)))
+    shared = PoseIK.shared(first)
+    assert PoseIK.shared(again) is shared
+    assert PoseIK.shared(pinned) is not shared
+    assert np.array_equal(PoseIK.shared(pinned).hi[7:], [0.0, 0.0])
+    fresh = PoseIK(first)
+    fk = fk_function(first.robot)
+    rng = np.random.default_rng(17)
+    starts = [np.concatenate([first.q_initial, first.base_offset_guess_m])]
+    for _ in range(4):
+        out = fk(rng.uniform(0.6 * first.robot.q_min, 0.6 * first.robot.q_max))
+        R_goal, p_goal = np.asarray(out[-2]), np.asarray(out[-1]).ravel()
+        x_shared = PoseIK.shared(again).solve(p_goal, R_goal, np.eye(3), starts)
+        x_fresh = fresh.solve(p_goal, R_goal, np.eye(3), starts)
+        assert (x_shared is None) == (x_fresh is None)
+        if x_fresh is not None:
+            np.testing.assert_array_equal(x_shared, x_fresh)
+
+
+def test_shared_pose_iks_are_bounded_oldest_first(monkeypatch):
+    """At most SHARED_IK_LIMIT IKs are kept; the oldest is dropped first."""
+    from planner.phases import approach_ik
+
+    monkeypatch.setattr(PoseIK, "_shared", {})
+    monkeypatch.setattr(approach_ik, "SHARED_IK_LIMIT", 2)
+    sc = load_scenario(SCENARIO_I)
+    variants = [replace(sc, base_offset_bounds_m=((-0.1 * k, 0.1 * k), (-0.1, 0.1))) for k in (1, 2, 3)]
+    iks = [PoseIK.shared(v) for v in variants]
+    assert len(PoseIK._shared) == 2
+    assert PoseIK.shared(variants[2]) is iks[2] and PoseIK.shared(variants[1]) is iks[1]
+    assert PoseIK.shared(variants[0]) is not iks[0]  # dropped, built anew
+
+
+def test_compiled_levenberg_marquardt_loop_equals_the_expanded_one_bit_for_bit(monkeypatch):
+    """The scan's IK is a loop over one compiled step; without a compiler it is expanded into one SX Function.
+    Both perform the same floating-point operations in the same order: the same answers to the last bit, from
+    seeded starts around seeded reachable goals (with drift and a fixed base, too)."""
+    from planner.phases.approach_ik import pack_ik_parameters
+
+    sc = load_scenario(SCENARIO_I)
+    fast = PoseIK(sc)
+    monkeypatch.setenv("LUTGEN_COMPILE", "0")
+    expanded = PoseIK(sc)
+    assert fast.lm.is_a("External") and not expanded.lm.is_a("External")
+    fk = fk_function(sc.robot)
+    rng = np.random.default_rng(41)
+    for k in range(8):
+        out = fk(rng.uniform(0.6 * sc.robot.q_min, 0.6 * sc.robot.q_max))
+        drift = (rng.normal(scale=0.02, size=3), quat_to_matrix([1.0, *rng.normal(scale=0.02, size=3)]))
+        p = pack_ik_parameters(np.asarray(out[-1]).ravel(), np.asarray(out[-2]), np.eye(3), 0.02, *drift,
+                               sc.base_offset_guess_m, float(k % 2))
+        x0 = np.clip(np.concatenate([sc.q_initial, sc.base_offset_guess_m]) + rng.normal(scale=0.3, size=9),
+                     fast.lo, fast.hi)
+        for a, b in zip(fast.lm(x0, p), expanded.lm(x0, p), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
