@@ -2,11 +2,13 @@
 
     PYTHONPATH=. .venv/bin/python scripts/bench_hessian.py plan --bed a --variant lbfgs [--save DIR]
     PYTHONPATH=. .venv/bin/python scripts/bench_hessian.py stab --beds a,b --variants lbfgs,exact --load DIR
+    PYTHONPATH=. .venv/bin/python scripts/bench_hessian.py check
 
 ``plan`` makes one whole plan of a bed under a variant (every NLP), verifies it, prints the approach and
 stabilization iterations, seconds, the verdict and the cost, and (``--save``) pickles every stabilization
 solve the plan asked for (grasp state, warm start, budgets). ``stab`` re-solves those recorded stabilization
-calls under each variant, alternating variants per call so the machine's load hits all alike.
+calls under each variant, alternating variants per call so the machine's load hits all alike. ``check``
+compares the exact-Hessian variant's Hessian with the chain rule on a small case.
 
 Beds: ``a`` scenario II default state (cold); ``b`` the golden CI table's in-cell query state, its warm
 refine; ``c1``/``c2`` scenario I / II default state with the paper's approach costs (manipulability +
@@ -184,6 +186,41 @@ def stab_beds(beds: list[str], variants: list[str], load: Path) -> None:
                       f"{call['status']}]", flush=True)
 
 
+def check_hessian() -> None:
+    """The exact-Hessian variant's Lagrangian Hessian on a small case against the chain rule with zero distance
+    curvature: ``Σ λ_i ∇d_i(pose)·∂²pose/∂x²``, the pose's second derivative by central differences."""
+    _zero_curvature_callback()
+    from planner.collision.callback import SceneDistanceCallback, pose_vector
+    from planner.collision.layout import TARGET_BODY
+    from planner.collision.nlp_scene import build_scene
+    from planner.config.scenario import load_scenario
+
+    sc = load_scenario(ROOT / "configs/scenarios/scenario_II.toml")
+    frames = [*sc.robot.body_names, TARGET_BODY]
+    cb = SceneDistanceCallback("d", build_scene(sc), frames, 1)
+    x = ca.MX.sym("x", 3)
+    rng = np.random.default_rng(0)
+    blocks = []
+    for i in range(len(frames)):
+        a, c, s = rng.normal(size=3), ca.cos(x[0] * rng.normal()), ca.sin(x[0] * rng.normal())
+        R = ca.mtimes(ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1)),
+                      ca.DM(np.linalg.qr(rng.normal(size=(3, 3)))[0]))
+        p = ca.vertcat(2 * np.sin(i) + a[0] * x[1] ** 2, 2 * np.cos(i) + a[1] * x[2] * x[0],
+                       0.3 * i + a[2] * x[1] * x[2])
+        blocks.append(pose_vector(R, p))
+    pose = ca.vertcat(*blocks)
+    lam = rng.normal(size=cb.n_out)
+    x0 = np.array([0.3, -0.2, 0.5])
+    hessian = np.array(ca.Function("H", [x], [ca.hessian(ca.dot(ca.DM(lam), cb(pose)), x)[0]])(x0))
+    pose_jacobian = ca.Function("Jp", [x], [ca.jacobian(pose, x)])
+    gradient = lam @ cb.evaluate(np.array(ca.Function("P", [x], [pose])(x0)).ravel(), with_jacobian=True)[1]
+    h = 1e-5
+    reference = np.stack([gradient @ (np.array(pose_jacobian(x0 + h * e)) - np.array(pose_jacobian(x0 - h * e)))
+                          / (2 * h) for e in np.eye(3)], axis=1)
+    print(f"Hessian vs chain rule with zero distance curvature: max |diff| {np.abs(hessian - reference).max():.2e} "
+          f"(entries up to {np.abs(reference).max():.2f})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
@@ -195,8 +232,11 @@ def main() -> None:
     s.add_argument("--beds", required=True)
     s.add_argument("--variants", default="lbfgs,exact")
     s.add_argument("--load", type=Path, required=True)
+    sub.add_parser("check")
     args = ap.parse_args()
-    if args.command == "plan":
+    if args.command == "check":
+        check_hessian()
+    elif args.command == "plan":
         plan_bed(args.bed, args.variant, args.save)
     else:
         stab_beds(args.beds.split(","), args.variants.split(","), args.load)
