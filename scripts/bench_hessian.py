@@ -37,10 +37,14 @@ VARIANTS: dict[str, tuple[dict, bool]] = {
     "exact_adaptive": ({"ipopt.hessian_approximation": "exact", "ipopt.mu_strategy": "adaptive"}, True),
     "lbfgs_h20": ({"ipopt.limited_memory_max_history": 20}, False),
     "lbfgs_sr1": ({"ipopt.limited_memory_update_type": "sr1"}, False),
+    # IPOPT 3.14 already runs adaptive mu under a limited-memory Hessian (its quasi-Newton default): same iterates
     "lbfgs_adaptive": ({"ipopt.mu_strategy": "adaptive"}, False),
+    "lbfgs_monotone": ({"ipopt.mu_strategy": "monotone"}, False),
+    "lbfgs_monotone_mu3": ({"ipopt.mu_strategy": "monotone", "ipopt.mu_init": 1e-3}, False),
     "lbfgs_noscale": ({"ipopt.nlp_scaling_method": "none"}, False),
     "lbfgs_push": ({"ipopt.bound_push": 1e-8, "ipopt.bound_frac": 1e-8}, False),
-    "lbfgs_mu4": ({"ipopt.mu_init": 1e-4}, False),
+    "lbfgs_resto": ({"ipopt.start_with_resto": "yes"}, False),
+    "lbfgs_mu4": ({"ipopt.mu_init": 1e-4}, False),  # ignored by the adaptive strategy: same iterates
     "lbfgs_h20_noscale": ({"ipopt.limited_memory_max_history": 20, "ipopt.nlp_scaling_method": "none"}, False),
 }
 
