@@ -160,5 +160,5 @@ def _solve_layer(grid: Grid, config: GridConfig, options: BuildOptions, layer: C
             shift = grid.start_delay_shift_s(grid.coordinates(parent), grid.coordinates(point), forward_turn=True)
         tasks.append(joblib.delayed(run_point)(options.solver, str(config.scenario_path), point, grid.state(point),
                                                None if warm is None else warm.parameters, shift,
-                                               options.point_timeout_s))
+                                               options.point_timeout_s, solver_kwargs=options.solver_kwargs()))
     return parallel(tasks) if tasks else ()

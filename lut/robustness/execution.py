@@ -59,6 +59,11 @@ def planner_for(scenario_path: str) -> Planner:
     return _PLANNERS[scenario_path]
 
 
+def register_planner(scenario_path: str, planner: Planner) -> None:
+    """Use ``planner`` for ``scenario_path``'s runs in this process (a caller that already built one)."""
+    _PLANNERS[scenario_path] = planner
+
+
 def run_one(planner: Planner, state: TargetState, parameters: PlanParameters, step_s: float) -> RunOutcome:
     """Execute ``parameters`` against ``state`` with ``planner`` and verify the run at ``step_s`` [s]."""
     from planner.verify.verifier import verify

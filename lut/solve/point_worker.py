@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lut.solve.parent_watch import exit_with_parent
+from lut.table.point_result import PointStatus
 from lut.table.records import (
     Record,
     failed_result,
@@ -39,16 +40,20 @@ if TYPE_CHECKING:
     from planner.plan import Planner
 
 WARM_PREFIX = "warm/"  # the warm start's parameter fields in IN.npz
+KWARG_PREFIX = "kw/"  # further keyword arguments of the solver (e.g. a build's --robust), by name
 _PLANNERS: dict[str, Planner] = {}
 
 
 def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
                 omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
-                max_wall_s: float | None = None) -> Record:
+                max_wall_s: float | None = None, robust_attitude_sigma_deg: float | None = None,
+                robust_rate_sigma_deg_s: float = 0.0, robust_samples: int = 0) -> Record:
     """Plan and verify one target state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]); warm-started
     from a neighbour's parameters, shifted in time by ``warm_shift_s`` [s], when given.
 
     ``max_wall_s`` [s] lowers the scenario's per-NLP wall-time limit (a query's refine inside its budget).
+    With ``robust_attitude_sigma_deg`` [deg] (and the rate σ [deg/s]) a feasible point also gets its robustness
+    figure over ``robust_samples`` drawn states (``lutgen build --robust``).
     """
     from planner.model.target import TargetState
     from planner.plan import OutOfReach
@@ -66,8 +71,14 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
         plan = planner.plan(state, warm_start)
     except OutOfReach as exc:
         return to_record(out_of_reach_result(point, str(exc), time.perf_counter() - t0))
-    result = result_from_plan(point, plan, verify(plan))
-    return to_record(replace(result, solve_time_s=time.perf_counter() - t0))
+    result = replace(result_from_plan(point, plan, verify(plan)), solve_time_s=time.perf_counter() - t0)
+    if robust_attitude_sigma_deg is not None and robust_samples > 0 and result.status is PointStatus.FEASIBLE:
+        from lut.robustness.point_figure import point_robustness
+
+        result = replace(result, robustness=point_robustness(
+            planner, scenario_path, state, plan.parameters, robust_attitude_sigma_deg, robust_rate_sigma_deg_s,
+            robust_samples, seed=max(point, 0)))
+    return to_record(result)
 
 
 def _planner(scenario_path: str, max_wall_s: float | None) -> Planner:
@@ -109,7 +120,8 @@ def main(argv: list[str]) -> int:
     args = load_npz(Path(in_path))
     warm = parameters_from_fields({k[len(WARM_PREFIX):]: v for k, v in args.items() if k.startswith(WARM_PREFIX)})
     point = int(args["point"])
-    extra = {"max_wall_s": float(args["max_wall_s"])} if "max_wall_s" in args else {}
+    extra: dict[str, float] = {"max_wall_s": float(args["max_wall_s"])} if "max_wall_s" in args else {}
+    extra.update({k[len(KWARG_PREFIX):]: v for k, v in args.items() if k.startswith(KWARG_PREFIX)})
     try:
         rec = solver(str(args["scenario_path"]), point, args["attitude_wxyz"], args["omega_body_rad_s"], warm,
                      float(args["warm_shift_s"]), **extra)
