@@ -53,8 +53,10 @@ def replan(plan_path: str, attitude: str, omega_deg_s: str, since_s: float, budg
     for line in plan_table(result.plan, result.report) + summary_lines(result.report):
         click.echo(line)
     x, z = result.plan.approach.base_offset_m
-    click.echo(f"re-planned from {plan_path}: base offset kept at ({x:+.4f}, {z:+.4f}) m; the approach starts "
-               f"{result.start_shift_s:+.3f} s from the previous schedule ({result.solve_s:.1f} s)")
+    click.echo(f"re-planned from {plan_path} ({result.source}): base offset kept at ({x:+.4f}, {z:+.4f}) m; the "
+               f"approach starts {result.start_shift_s:+.3f} s from the previous schedule ({result.solve_s:.1f} s)")
+    if result.solve_failure:
+        click.echo(f"re-solve gave no feasible plan: {result.solve_failure}", err=True)
     export_and_verdict(result.plan, result.report, out_path, csv_path)
 
 

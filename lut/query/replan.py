@@ -3,10 +3,11 @@ has started (it waits, arm at its start configuration, base at the previous plan
 
 The new estimate is of the target's state at its own observation, ``since_s`` seconds after the previous
 one, before the previous approach begins (``since_s`` < its start delay). The new plan's times count from the
-new observation: the warm start is the previous parameters with their start delay less ``since_s``, and the
-approach NLP's base offset θ_b(0) is pinned at the previous plan's (:mod:`lut.query.pinned_solve`), so
-nothing the chaser has done so far changes. The solve runs in a child process killed at the budget; its
-plan is re-simulated at the new state and verified densely, like a query's refine.
+new observation. First the previous plan itself, its start delay less ``since_s``, is re-simulated at the
+new state and verified: if it is feasible it is the answer (the maneuver does not change at all). Otherwise
+a solve warm-started from it, with the approach NLP's base offset θ_b(0) pinned at the previous plan's
+(:mod:`lut.query.pinned_solve`), runs in a child process killed at the budget; its plan is re-simulated and
+verified like a query's refine, and replaces the shifted one if it is feasible.
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ class Replan:
     report: VerifyReport
     start_shift_s: float  # new approach start − previous one, both on the previous observation's clock [s]
     solve_s: float
+    source: str  # "previous plan" (shifted, unchanged) or "re-solved" (base offset pinned)
+    solve_failure: str = ""  # why a solve that was needed gave no feasible plan
 
 
 def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, since_s: float,
@@ -54,16 +57,26 @@ def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, sin
         raise LutgenError(f"--since-s: the new estimate must come after the previous one and before its approach "
                           f"starts at {tau:.3f} s, got {since_s}")
     t0 = time.perf_counter()
-    room = budget_s - FINISH_RESERVE_S
-    if room < 5.0:
+    if budget_s - FINISH_RESERVE_S < 5.0:
         raise LutgenError(f"--budget-s: a re-plan needs at least {FINISH_RESERVE_S + 5.0:g} s, got {budget_s:g}")
-    solved = run_point(PINNED_SOLVER, str(scenario.source), -1, state, previous, -since_s, timeout_s=room,
+    planner = Planner(scenario)
+    shifted = planner.simulate(state, previous.with_start_delay(tau - since_s))
+    shifted_report = verify(shifted)
+    if shifted_report.feasible:
+        return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan")
+    room = budget_s - FINISH_RESERVE_S - (time.perf_counter() - t0)
+    solved = run_point(PINNED_SOLVER, str(scenario.source), -1, state, previous, -since_s, timeout_s=max(room, 1.0),
                        max_wall_s=max(1.0, room / 4), timeout_name="--budget-s")
     if solved.status not in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) or solved.parameters is None:
-        raise LutgenError(f"the re-plan gave no plan: {solved.failure_reason or solved.status.value}")
+        return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
+                      solved.failure_reason or solved.status.value)
     new = solved.parameters
     gap = float(np.abs(np.asarray(new.approach.base_offset_m) - np.asarray(previous.approach.base_offset_m)).max())
     if gap > BASE_PIN_TOL_M:  # the pinned bounds hold it: anything else is a broken solve, not a plan to fly
         raise LutgenError(f"the re-plan moved the base offset by {gap:.3g} m although it was pinned")
-    plan = Planner(scenario).simulate(state, new)
-    return Replan(plan, verify(plan), since_s + new.approach.start_delay_s - tau, time.perf_counter() - t0)
+    plan = planner.simulate(state, new)
+    report = verify(plan)
+    if not report.feasible:
+        return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
+                      "the re-solved plan is infeasible too: " + "; ".join(report.violations)[:200])
+    return Replan(plan, report, since_s + new.approach.start_delay_s - tau, time.perf_counter() - t0, "re-solved")

@@ -34,31 +34,38 @@ def plan(tmp_path):
     return write_replay_plan_for_current_model(tmp_path / "plan.json")
 
 
-@pytest.mark.slow
 def test_exact_newer_estimate_repeats_the_maneuver_on_the_shifted_clock(plan, tmp_path):
     doc = json.loads(plan.read_text())
     since = 10.0
-    res = lutgen_in_process("replan", plan, *state_at(doc, since), "--since-s", str(since), "--out",
-                            tmp_path / "new.json")
+    res = lutgen_in_process("replan", plan, *state_at(doc, since), "--since-s", str(since), "--budget-s", "900",
+                            "--out", tmp_path / "new.json")
     assert res.returncode == 0, res.stdout + res.stderr
+    assert "(previous plan)" in res.stdout  # feasible as it stands: nothing is re-solved
     new = json.loads((tmp_path / "new.json").read_text())
-    assert new["parameters"]["base_offset_m"] == doc["parameters"]["base_offset_m"]  # pinned: bit for bit
+    assert new["parameters"]["base_offset_m"] == doc["parameters"]["base_offset_m"]
     old_start, new_start = doc["parameters"]["start_delay_s"], new["parameters"]["start_delay_s"]
-    assert new_start + since == pytest.approx(old_start, abs=0.05)
+    assert new_start + since == pytest.approx(old_start, abs=1e-9)
     # the same maneuver: joint angles at the same absolute times (previous clock) agree
     t_old, q_old = np.asarray(doc["samples"]["t"]), np.asarray(doc["samples"]["q"])
     t_new, q_new = np.asarray(new["samples"]["t"]) + since, np.asarray(new["samples"]["q"])
+    approach = t_old <= doc["phases"]["approach"][1]
     for j in range(7):
-        assert np.abs(np.interp(t_old, t_new, q_new[:, j]) - q_old[:, j]).max() < 1e-2
+        gap = np.abs(np.interp(t_old, t_new, q_new[:, j]) - q_old[:, j])
+        assert gap[approach].max() < 1e-9  # the approach does not depend on the target: the same, bit for bit
+        # the propagated state differs from the one the plan saw in its last bits, and the stabilization's start
+        # from the grasp state amplifies that (1e-5 rad; see test_robustness_command)
+        assert gap.max() < 1e-3
 
 
 @pytest.mark.slow
 def test_changed_estimate_keeps_the_base_offset(plan, tmp_path):
     doc = json.loads(plan.read_text())
-    res = lutgen_in_process("replan", plan, *state_at(doc, 8.0, 0.3, 0.01), "--since-s", "8", "--out",
-                            tmp_path / "new.json")
+    res = lutgen_in_process("replan", plan, *state_at(doc, 8.0, 0.3, 0.01), "--since-s", "8", "--budget-s", "900",
+                            "--out", tmp_path / "new.json")
     assert res.returncode in (0, 2), res.stderr
     assert "base offset kept" in res.stdout
+    # the shifted plan fails at this estimate (its grasp-torque margin): re-solved, or why the re-solve did not help
+    assert "(re-solved)" in res.stdout or "re-solve gave no feasible plan" in res.stderr, res.stdout + res.stderr
     new = json.loads((tmp_path / "new.json").read_text())
     assert new["parameters"]["base_offset_m"] == doc["parameters"]["base_offset_m"]
     assert new["parameters"]["start_delay_s"] >= 0.0
