@@ -110,3 +110,13 @@ def test_bad_plans_and_covariances_are_one_line(tmp_path):
     assert_one_line_error(lutgen_in_process("robustness", plan, "--covariance", cov, "--attitude-sigma-deg", "1"),
                           "not both")
     assert_one_line_error(lutgen_in_process("robustness", REPLAY_PLAN, "--scenario", tmp_path / "no.toml"), "no.toml")
+
+
+def test_min_success_is_judged_on_the_interval_lower_bound(tmp_path):
+    plan = write_replay_plan_for_current_model(tmp_path / "plan.json")
+    common = ("robustness", plan, "--samples", "1", "--scales", "1", "--no-progress")  # zero error: the plan itself
+    go = lutgen_in_process(*common, "--min-success", "0.2")
+    no_go = lutgen_in_process(*common, "--min-success", "0.5")
+    assert "success      1/1" in go.stdout and go.returncode == 0, go.stdout + go.stderr
+    # one feasible run of one: Wilson's lower bound is 0.21, too little evidence for a 50 % threshold
+    assert no_go.returncode == 2 and "NO-GO" in no_go.stderr and "0.207" in no_go.stderr, no_go.stderr
