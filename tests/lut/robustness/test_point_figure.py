@@ -7,6 +7,7 @@ import math
 
 import h5py
 import numpy as np
+import pytest
 
 from lut.output.plan_replay import replay_inputs
 from lut.robustness.error_model import ErrorModel, perturbed_states, standard_draws
@@ -51,3 +52,20 @@ def test_inspect_maps_the_recorded_success(tmp_path):
     res = lutgen_in_process("inspect", table, "--plot", tmp_path / "maps")
     assert res.returncode == 0, res.stderr
     assert list((tmp_path / "maps").glob("coverage_robust_success*.png"))
+
+
+@pytest.mark.slow
+def test_a_robust_build_records_a_figure_at_every_feasible_point(tmp_path):
+    """``lutgen build --robust``: the figure reaches the point solver through its child process and the table."""
+    from lut.table.store import Table
+
+    out = tmp_path / "ci.h5"
+    res = lutgen_in_process("build", ROOT / "configs" / "grids" / "ci.toml", "--out", out, "-j", "2", "--robust",
+                            "0.05,0.005", "--robust-samples", "2", "--no-progress")
+    assert res.returncode == 0, res.stdout + res.stderr
+    t = Table.open(out)
+    feasible = t.status == PointStatus.FEASIBLE.code
+    p = t.field("robustness/success_probability")
+    assert feasible.any() and np.all((p[feasible] >= 0) & (p[feasible] <= 1))
+    assert np.all(t.field("robustness/runs")[feasible] == 2)
+    assert np.all(t.field("robustness/attitude_sigma_deg")[feasible] == 0.05)
