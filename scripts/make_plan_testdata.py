@@ -2,7 +2,8 @@
 
     .venv/bin/python scripts/make_plan_testdata.py PLAN.json OUT.json.gz [--step-s 0.1]
 
-Used for ``tests/data/plan_I.json.gz`` and ``plan_II.json.gz`` (``lutgen plan … --out PLAN.json`` first).
+Used for ``tests/data/plan_I.json.gz``, ``plan_II.json.gz`` and ``plan_II_replay.json.gz`` (``--step-s 0.5``)
+(``lutgen plan … --out PLAN.json`` first).
 Phase boundaries and the last sample are always kept.
 """
 

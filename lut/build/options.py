@@ -27,6 +27,15 @@ class BuildOptions:
     force: bool = False  # start over: an existing table (replaced when the new one is complete) or journal
     solver: str = DEFAULT_SOLVER  # module:function run in the point process
     progress: bool = True
+    robust_sigmas: tuple[float, float] | None = None  # --robust: 1-σ attitude [deg] and body rate [deg/s]
+    robust_samples: int = 20  # drawn states per feasible point with --robust
+
+    def solver_kwargs(self) -> dict[str, float]:
+        """The point solver's robustness arguments (none without ``--robust``)."""
+        if self.robust_sigmas is None:
+            return {}
+        return {"robust_attitude_sigma_deg": self.robust_sigmas[0], "robust_rate_sigma_deg_s": self.robust_sigmas[1],
+                "robust_samples": self.robust_samples}
 
 
 class BuildOutcome(Enum):
@@ -55,6 +64,10 @@ def check_options(options: BuildOptions) -> None:
         raise LutgenError(f"--point-timeout: must be in (0, {MAX_POINT_TIMEOUT_S:g}] s, got {options.point_timeout_s}")
     if options.jobs < 1:
         raise LutgenError(f"-j/--jobs: must be >= 1, got {options.jobs}")
+    if options.robust_sigmas is not None and not (all(np.isfinite(v) and v >= 0 for v in options.robust_sigmas)
+                                                  and options.robust_samples >= 1):
+        raise LutgenError(f"--robust: σ's must be finite numbers >= 0 and --robust-samples >= 1, got "
+                          f"{options.robust_sigmas}, {options.robust_samples}")
     if options.backend not in BACKENDS:
         raise LutgenError(f"--backend: must be loky or dask, got {options.backend!r}")
     if options.backend == "dask" and not options.scheduler:

@@ -163,5 +163,5 @@ def _solve_layer(grid: Grid, config: GridConfig, options: BuildOptions, layer: C
         tasks.append(joblib.delayed(run_point)(options.solver, str(config.scenario_path), point, grid.state(point),
                                                None if warm is None else warm.parameters, shift,
                                                options.point_timeout_s, plan_budget_s=options.point_timeout_s,
-                                               cold_fallback=True))
+                                               cold_fallback=True, solver_kwargs=options.solver_kwargs()))
     return parallel(tasks) if tasks else ()

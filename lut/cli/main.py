@@ -16,7 +16,7 @@ from typing import Any
 
 import click
 
-from lut.cli import plan_commands, table_commands, view
+from lut.cli import plan_commands, replan_command, robustness_command, table_commands, view
 from lut.cli.exit_codes import ExitCode
 
 
@@ -58,15 +58,20 @@ def main() -> None:
                                                   observed state → verified plan from the table
       lutgen plot plan.json -o DIR                figures of a plan (PNG)
       lutgen preview plan.json -o preview.html    3D animation of a plan (one HTML page)
+      lutgen robustness plan.json --attitude-sigma-deg 0.5 --rate-sigma-deg-s 0.05 -j 2
+                                                  how much observation error the plan absorbs
+      lutgen replan plan.json --attitude W,X,Y,Z --omega-deg-s X,Y,Z --since-s T --out new.json
+                                                  a newer estimate before the approach starts → continuous plan
 
     \b
     Exit codes: 0 done (plan/query: feasible), 1 bad input (one line "error: …"),
-    2 infeasible (plan/query), 64 malformed command line.
+    2 infeasible (plan/query) or no-go (robustness --min-success), 64 malformed command line.
     """
     warnings.formatwarning = _one_line_warning
 
 
-for _command in (*plan_commands.COMMANDS, *table_commands.COMMANDS, *view.COMMANDS):
+for _command in (*plan_commands.COMMANDS, *table_commands.COMMANDS, *robustness_command.COMMANDS,
+                 *replan_command.COMMANDS, *view.COMMANDS):
     main.add_command(_command)
 
 

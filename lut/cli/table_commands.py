@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -13,7 +14,10 @@ from lut.cli.user_errors import user_errors
 from planner.errors import LutgenError
 
 if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load h5py
+    from lut.query.robust_choice import RobustRequest
+    from lut.query.table_query import TableQuery
     from lut.table.store import Table
+    from planner.model.target import TargetState
 
 
 @click.command()
@@ -31,9 +35,14 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
               help="Build again although OUT (or an interrupted build's journal) exists; OUT is replaced only "
                    "when the new table is complete.")
 @click.option("--no-progress", is_flag=True, help="No progress bar (logs, CI).")
+@click.option("--robust", "robust_sigmas", default=None, metavar="ATT_DEG,RATE_DEG_S",
+              help="Also record each feasible point's success probability at this 1-σ attitude (deg) and body-rate "
+                   "(deg/s) error (robustness/* fields; inspect --plot maps it).")
+@click.option("--robust-samples", type=int, default=20, show_default=True,
+              help="With --robust: drawn true states per feasible point.")
 @user_errors
 def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str | None, point_timeout_s: float,
-          resume: bool, force: bool, no_progress: bool) -> None:
+          resume: bool, force: bool, no_progress: bool, robust_sigmas: str | None, robust_samples: int) -> None:
     """Solve every point of GRID_PATH and store the verified plans in an HDF5 look-up table.
 
     Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
@@ -42,8 +51,13 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
     from lut.build.options import BuildOptions, BuildOutcome
     from lut.build.sweep import run_build
 
+    sigmas = None
+    if robust_sigmas is not None:
+        att_deg, rate_deg_s = parse_floats(robust_sigmas, 2, "--robust")
+        sigmas = (att_deg, rate_deg_s)
     options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
-                           resume=resume, force=force, progress=not no_progress)
+                           resume=resume, force=force, progress=not no_progress,
+                           robust_sigmas=sigmas, robust_samples=robust_samples)
     summary = run_build(grid_path, out_path, options)
     c = summary.counts
     if summary.outcome is BuildOutcome.ALREADY_COMPLETE:
@@ -136,12 +150,23 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
               help="Scenario file, if it moved since the build.")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None, help="Write the plan JSON here.")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), default=None, help="Also write the samples as CSV.")
+@click.option("--robust", "robust_sigmas", default=None, metavar="ATT_DEG,RATE_DEG_S",
+              help="Choose, among the interpolated plan, each feasible corner's and a refined one (as the budget "
+                   "allows), the plan with the best success probability at this 1-σ attitude (deg, per body axis) "
+                   "and body-rate (deg/s) error.")
+@click.option("--robust-samples", type=int, default=20, show_default=True,
+              help="With --robust: drawn true states each candidate is executed against (the same for all).")
+@click.option("--seed", type=int, default=0, show_default=True, help="With --robust: seed of the draws.")
+@click.option("-j", "--jobs", type=int, default=1, show_default=True, help="With --robust: worker processes.")
 @user_errors
 def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget_s: float,
-          scenario_path: str | None, out_path: str | None, csv_path: str | None) -> None:
+          scenario_path: str | None, out_path: str | None, csv_path: str | None, robust_sigmas: str | None,
+          robust_samples: int, seed: int, jobs: int) -> None:
     """Turn an observed target state into a verified plan from a look-up table.
 
-    Exit code 0: feasible; 2: infeasible (violations printed); 1: bad input, table or state.
+    With --robust, the most robust of the plans the query can produce is returned, with its success
+    probability (lutgen robustness' figure). Exit code 0: feasible; 2: infeasible (violations printed);
+    1: bad input, table or state.
     """
     import numpy as np
 
@@ -155,9 +180,13 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     omega = np.radians(parse_floats(omega_deg_s, 3, "--omega-deg-s"))
     state = TargetState(np.asarray(quat), omega)
     check_plan_outputs([table_path, *([scenario_path] if scenario_path else [])], out_path, csv_path)
+    robust = _robust_request(robust_sigmas, robust_samples, seed, jobs) if robust_sigmas is not None else None
     tq = TableQuery(table_path, scenario_path)
     check_plan_outputs([table_path, tq.scenario_path, *tq.scenario.input_files],
                        out_path, csv_path)
+    if robust is not None:
+        _robust_query(tq, state, robust, budget_s, out_path, csv_path)
+        return
     result = tq.query(state, budget_s=budget_s, refine=refine, since_s=started_s)
     for note in result.notes:
         click.echo(f"note: {note}; planned and verified at the observed state")
@@ -171,6 +200,42 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     if result.refine_failure:
         click.echo(f"refine did not finish: {result.refine_failure}", err=True)
     export_and_verdict(result.plan, result.report, out_path, csv_path)
+
+
+def _robust_request(sigmas: str, samples: int, seed: int, jobs: int) -> RobustRequest:
+    """``--robust ATT_DEG,RATE_DEG_S`` and its companions, checked."""
+    import math
+
+    from lut.query.robust_choice import RobustRequest
+    from lut.robustness.error_model import ErrorModel
+
+    att_deg, rate_deg_s = parse_floats(sigmas, 2, "--robust")
+    if not all(math.isfinite(v) and v >= 0 for v in (att_deg, rate_deg_s)):
+        raise LutgenError(f"--robust: both σ's must be finite numbers >= 0, got {sigmas!r}")
+    for option, value in (("--robust-samples", samples), ("--jobs", jobs)):
+        if value < 1:
+            raise LutgenError(f"{option}: must be >= 1, got {value}")
+    return RobustRequest(ErrorModel.from_sigmas(math.radians(att_deg), math.radians(rate_deg_s)), samples, seed, jobs)
+
+
+def _robust_query(tq: TableQuery, state: TargetState, robust: RobustRequest, budget_s: float, out_path: str | None,
+                  csv_path: str | None) -> None:
+    """``query --robust``: every candidate judged, the chosen one printed, exported and given its verdict."""
+    from lut.query.robust_choice import candidate_lines, robust_query
+    from planner.verify.verifier import summary_lines
+
+    choice = robust_query(tq, state, robust, budget_s)
+    chosen = choice.chosen
+    for line in plan_table(chosen.plan, chosen.report) + summary_lines(chosen.report):
+        click.echo(line)
+    sig = robust.model.sigmas()
+    click.echo(f"robust choice at 1-σ {math.degrees(sig[0]):g}° attitude, {math.degrees(sig[3]):g} °/s rate, "
+               f"{robust.samples} drawn states (seed {robust.seed}); corners {choice.corners}; "
+               f"{choice.elapsed_s:.1f} s")
+    for line in candidate_lines(choice):
+        click.echo(line)
+    click.echo(f"source {chosen.source} ({chosen.label})")
+    export_and_verdict(chosen.plan, chosen.report, out_path, csv_path)
 
 
 COMMANDS = (build, inspect, query)

@@ -44,6 +44,7 @@ QUANTITIES = (  # (table field, file stem, label with unit)
     ("costs/min_distance_m", "min_distance_m", "min collision distance [m]"),
     ("costs/peak_grasp_torque_nm", "peak_grasp_torque_nm", "peak grasp torque [N·m]"),
     ("solve_time_s", "solve_time_s", "solve time [s]"),
+    ("robustness/success_probability", "robust_success", "success probability (build --robust)"),
 )
 
 

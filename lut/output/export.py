@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from lut.output.plan_replay import replay_block
 from lut.table.records import plan_costs
 from planner.errors import LutgenError
 from planner.model.rotation import matrix_to_quat
@@ -129,6 +130,7 @@ def plan_document(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
         "metrics": plan_metrics(plan, report),
         "samples": {**{key: np.asarray(v).tolist() for key, v in samples.items()},
                     "closest_pair": list(report.closest_pair)},
+        **replay_block(plan, portable_path(sc.source)),
     }
 
 

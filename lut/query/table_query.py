@@ -72,17 +72,8 @@ class TableQuery:
         nearest feasible point's; ``None`` when the table has no feasible point."""
         projection = project_to_grid(self.grid, state)
         coords = projection.coords
-        cell = self.grid.locate(coords)
-        rate = float(np.linalg.norm(state.omega_body_rad_s))
-        period = 2 * np.pi / rate if rate > 0 else PERIOD_FREE
-        candidates = []
-        for corner, weight in zip(cell.corners, cell.weights, strict=True):
-            point = self.points[corner]
-            if point.status is not PointStatus.FEASIBLE or weight <= 0:
-                continue
-            tau = point.parameters.approach.start_delay_s + self.phase_shift_s(corner, coords)
-            carried = point.parameters.with_start_delay(tau % period if np.isfinite(period) else tau)
-            candidates.append(Candidate(corner, float(weight), carried))
+        period = _spin_period_s(state)
+        candidates = self.corner_candidates(state)
         if candidates:
             group = consistent_group(candidates, period)
             return TableAnswer(mean_of_group(group, period), [c.corner for c in group], QuerySource.INTERPOLATED,
@@ -93,6 +84,21 @@ class TableQuery:
         stored = self.points[nearest].parameters
         carried = stored.with_start_delay(stored.approach.start_delay_s + self.phase_shift_s(nearest, coords))
         return TableAnswer(carried, [nearest], QuerySource.NEAREST, projection.notes)
+
+    def corner_candidates(self, state: TargetState) -> list[Candidate]:
+        """The feasible corners (weight > 0) of ``state``'s cell, their parameters carried to its spin phase."""
+        coords = project_to_grid(self.grid, state).coords
+        cell = self.grid.locate(coords)
+        period = _spin_period_s(state)
+        candidates = []
+        for corner, weight in zip(cell.corners, cell.weights, strict=True):
+            point = self.points[corner]
+            if point.status is not PointStatus.FEASIBLE or weight <= 0:
+                continue
+            tau = point.parameters.approach.start_delay_s + self.phase_shift_s(corner, coords)
+            carried = point.parameters.with_start_delay(tau % period if np.isfinite(period) else tau)
+            candidates.append(Candidate(corner, float(weight), carried))
+        return candidates
 
     def phase_shift_s(self, point: int, coords: NDArray[np.float64]) -> float:
         """Start-delay shift [s] carrying grid point ``point``'s plan to ``coords`` (flat-spin symmetry)."""
@@ -117,7 +123,7 @@ class TableQuery:
         plan = report = None
         source = QuerySource.SOLVED_COLD
         if found is not None:
-            plan, report = self._simulate_and_verify(state, found.parameters, latency)
+            plan, report = self.simulate_and_verify(state, found.parameters, latency)
             source = found.source
         # warm from the table's answer first, then cold (with its retries over grasps) in what the budget has left
         attempts = [(None, QuerySource.SOLVED_COLD)]
@@ -129,10 +135,10 @@ class TableQuery:
             if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
                 break
             t0 = time.perf_counter()
-            refined = self._refine(state, warm, remaining)
+            refined = self.refine(state, warm, remaining)
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
-                new_plan, new_report = self._simulate_and_verify(state, refined.parameters, {})
+                new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})
                 if report is None or (new_report.feasible and (refine or not report.feasible)):
                     plan, report, source = new_plan, new_report, label
             else:
@@ -145,7 +151,7 @@ class TableQuery:
         return QueryResult(plan, report, source, found.corners if found is not None else [], latency, refine_failure,
                            found.notes if found is not None else ())
 
-    def _simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
+    def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:
         """The plan of ``parameters`` re-simulated at ``state`` (start delay wrapped into the window), verified."""
         t0 = time.perf_counter()
@@ -159,7 +165,7 @@ class TableQuery:
         latency["verify_s"] = time.perf_counter() - t0
         return plan, report
 
-    def _refine(self, state: TargetState, warm: PlanParameters | None, budget_s: float) -> PointResult:
+    def refine(self, state: TargetState, warm: PlanParameters | None, budget_s: float) -> PointResult:
         """A solve warm-started from ``warm`` (cold without) in a child process with a hard time limit [s].
 
         The child's plan has a deadline inside that limit (:mod:`planner.deadline`): its solves end there with
@@ -170,6 +176,12 @@ class TableQuery:
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
                          max_wall_s=max(1.0, budget_s / 2), plan_budget_s=budget_s,
                          timeout_name="the refine's share of --budget-s")
+
+
+def _spin_period_s(state: TargetState) -> float:
+    """The target's spin period 2π/|ω| [s] (:data:`PERIOD_FREE` at rest)."""
+    rate = float(np.linalg.norm(state.omega_body_rad_s))
+    return 2 * np.pi / rate if rate > 0 else PERIOD_FREE
 
 
 def _stored_scenario(table: Table, table_path: Path) -> Path:

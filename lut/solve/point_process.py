@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lut.solve.point_worker import WARM_PREFIX, load_npz, save_npz
+from lut.solve.point_worker import KWARG_PREFIX, WARM_PREFIX, load_npz, save_npz
 from lut.table.point_result import PointResult
 from lut.table.records import failed_result, from_record, parameter_fields
 from planner.deadline import Deadline
@@ -25,7 +25,7 @@ DEFAULT_SOLVER = "lut.solve.point_worker:solve_point"  # module:function the chi
 def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: PlanParameters | None,
               warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None,
               plan_budget_s: float | None = None, cold_fallback: bool = False,
-              timeout_name: str = "--point-timeout") -> PointResult:
+              timeout_name: str = "--point-timeout", solver_kwargs: dict[str, float] | None = None) -> PointResult:
     """Solve one point in a child process; timeouts and crashes become failed results.
 
     ``warm``, shifted in time by ``warm_shift_s`` [s], is the solve's warm start. ``max_wall_s`` [s], when
@@ -34,7 +34,7 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
     is verified and returned before the kill); ``cold_fallback`` re-plans cold a warm-started point whose plan is
     infeasible (see :func:`lut.solve.point_worker.solve_point`);
     ``timeout_s`` [s] is the hard limit of the whole process, which a timeout's reason names as
-    ``timeout_name`` (the option that set it).
+    ``timeout_name`` (the option that set it). ``solver_kwargs``: further keyword arguments of the solver.
     """
     with tempfile.TemporaryDirectory(prefix="lutgen-point-") as tmp:
         in_path, out_path = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
@@ -46,6 +46,7 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
             args["cold_fallback"] = 1
         if warm is not None:
             args.update({WARM_PREFIX + key: value for key, value in parameter_fields(warm).items()})
+        args.update({KWARG_PREFIX + key: value for key, value in (solver_kwargs or {}).items()})
         t0 = time.perf_counter()
         if plan_budget_s is not None:  # time.monotonic() is one clock for every process of the machine
             args["deadline_at_s"] = Deadline.after(plan_budget_s).at_s

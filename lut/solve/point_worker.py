@@ -42,13 +42,15 @@ if TYPE_CHECKING:
     from planner.plan import Planner
 
 WARM_PREFIX = "warm/"  # the warm start's parameter fields in IN.npz
+KWARG_PREFIX = "kw/"  # further keyword arguments of the solver (e.g. a build's --robust), by name
 _PLANNERS: dict[str, Planner] = {}
 
 
 def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
                 omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
                 max_wall_s: float | None = None, deadline_at_s: float | None = None, cold_fallback: bool = False,
-                ) -> Record:
+                robust_attitude_sigma_deg: float | None = None, robust_rate_sigma_deg_s: float = 0.0,
+                robust_samples: int = 0) -> Record:
     """Plan and verify one target state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]); warm-started
     from a neighbour's parameters, shifted in time by ``warm_shift_s`` [s], when given.
 
@@ -57,6 +59,8 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     it and write the record. With ``cold_fallback`` a warm-started plan that verify finds infeasible is planned
     again cold (with its retries over grasps, within the same deadline), and the cold plan is kept if it is
     feasible: a neighbour's solution can lead into a family that does not work here.
+    With ``robust_attitude_sigma_deg`` [deg] (and the rate σ [deg/s]) a feasible point also gets its robustness
+    figure over ``robust_samples`` drawn states (``lutgen build --robust``).
     """
     from planner.model.target import TargetState
     from planner.plan import OutOfReach
@@ -78,7 +82,14 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     result = result_from_plan(point, plan, verify(plan))
     if cold_fallback and warm_start is not None and result.status is not PointStatus.FEASIBLE and not deadline.passed:
         result = _cold_if_feasible(planner, point, state, deadline, result)
-    return to_record(replace(result, solve_time_s=time.perf_counter() - t0))
+    result = replace(result, solve_time_s=time.perf_counter() - t0)
+    if robust_attitude_sigma_deg is not None and robust_samples > 0 and result.status is PointStatus.FEASIBLE:
+        from lut.robustness.point_figure import point_robustness
+
+        result = replace(result, robustness=point_robustness(
+            planner, scenario_path, state, result.parameters, robust_attitude_sigma_deg, robust_rate_sigma_deg_s,
+            robust_samples, seed=max(point, 0)))
+    return to_record(result)
 
 
 def _cold_if_feasible(planner: Planner, point: int, state: TargetState, deadline: Deadline,
@@ -139,6 +150,7 @@ def main(argv: list[str]) -> int:
     extra: dict[str, Any] = {key: float(args[key]) for key in ("max_wall_s", "deadline_at_s") if key in args}
     if args.get("cold_fallback"):
         extra["cold_fallback"] = True
+    extra.update({k[len(KWARG_PREFIX):]: v for k, v in args.items() if k.startswith(KWARG_PREFIX)})
     try:
         rec = solver(str(args["scenario_path"]), point, args["attitude_wxyz"], args["omega_body_rad_s"], warm,
                      float(args["warm_shift_s"]), **extra)

@@ -33,7 +33,8 @@ class PointResult:
     ``parameters``: what the plan is re-simulated from, ``None`` when the solve gave no plan (failed, or
     proved out of reach). ``costs`` by name without the ``costs/`` prefix (e.g. ``min_distance_m`` [m],
     ``approach_energy_m2`` [m²], ``peak_grasp_torque_nm`` [N·m]); ``margins`` per verification check
-    (positive: satisfied), in that check's unit.
+    (positive: satisfied), in that check's unit. ``robustness``: the figure a build with ``--robust`` records
+    for a feasible point (:func:`lut.robustness.point_figure.point_robustness`; empty otherwise).
     """
 
     point: int
@@ -45,3 +46,4 @@ class PointResult:
     free_axis_angle_rad: float | None = None  # the tracking's free rotation about the grasp axis [rad]
     costs: dict[str, float] = field(default_factory=dict)
     margins: dict[str, float] = field(default_factory=dict)
+    robustness: dict[str, float] = field(default_factory=dict)

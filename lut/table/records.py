@@ -72,6 +72,7 @@ def to_record(result: PointResult) -> Record:
         rec["free_axis_angle_rad"] = result.free_axis_angle_rad
     rec.update({f"costs/{name}": value for name, value in result.costs.items()})
     rec.update({f"margins/{name}": value for name, value in result.margins.items()})
+    rec.update({f"robustness/{name}": value for name, value in result.robustness.items()})
     return rec
 
 
@@ -88,7 +89,8 @@ def from_record(rec: Record) -> PointResult:
                        solve_time_s=float(rec.get("solve_time_s", float("nan"))),
                        iterations=int(rec.get("iterations", 0)), parameters=parameters_from_fields(rec),
                        free_axis_angle_rad=None if free is None else float(free),
-                       costs=_prefixed(rec, "costs/"), margins=_prefixed(rec, "margins/"))
+                       costs=_prefixed(rec, "costs/"), margins=_prefixed(rec, "margins/"),
+                       robustness=_prefixed(rec, "robustness/"))
 
 
 def _prefixed(rec: Record, prefix: str) -> dict[str, float]:

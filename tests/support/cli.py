@@ -80,3 +80,26 @@ def write_golden_for_current_model(path: Path) -> None:
         f.attrs["config_text"] = config.text
         f.attrs["scenario_text"] = scenario.text
         f.attrs["scenario_path"] = os.path.relpath(config.scenario_path, path.parent)
+
+
+REPLAY_PLAN = ROOT / "tests" / "data" / "plan_II_replay.json.gz"  # scenario II's default plan, with its parameters
+
+
+def replay_plan_for_current_model() -> dict:
+    """The stored scenario II plan (with its parameters) labelled with today's model hash, so that a deliberate
+    config change does not make every re-execution test refuse it."""
+    from lut.output.plan_file import load_plan
+    from lut.output.plan_replay import replay_inputs
+    from planner.config.scenario import load_scenario
+
+    doc = load_plan(REPLAY_PLAN)
+    doc["model_hash"] = table_hash(load_scenario(ROOT / replay_inputs(doc, "plan").scenario_file))
+    return doc
+
+
+def write_replay_plan_for_current_model(path: Path) -> Path:
+    """:func:`replay_plan_for_current_model` written as a plan JSON file at ``path``."""
+    import json
+
+    path.write_text(json.dumps(replay_plan_for_current_model()), encoding="utf-8")
+    return path

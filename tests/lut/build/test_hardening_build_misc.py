@@ -93,6 +93,6 @@ def test_a_refine_timeout_names_the_query_budget(tmp_path, monkeypatch):
     monkeypatch.setenv("LUTGEN_FAKE_HANG", "-1")  # the refine solves "point" -1
     monkeypatch.setattr(lut.query.table_query, "DEFAULT_SOLVER", "tests.support.fake_solver:solve")
     tq = TableQuery(table)
-    result = tq._refine(tq.grid.state(0), None, budget_s=1.0)
+    result = tq.refine(tq.grid.state(0), None, budget_s=1.0)
     assert result.status == "failed"
     assert "--budget-s" in result.failure_reason and "--point-timeout" not in result.failure_reason

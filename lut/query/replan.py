@@ -1,0 +1,82 @@
+"""Re-plan on a newer estimate: the previous plan as the warm start, a plan continuous with the one the chaser
+has started (it waits, arm at its start configuration, base at the previous plan's offset).
+
+The new estimate is of the target's state at its own observation, ``since_s`` seconds after the previous
+one, before the previous approach begins (``since_s`` < its start delay). The new plan's times count from the
+new observation. First the previous plan itself, its start delay less ``since_s``, is re-simulated at the
+new state and verified: if it is feasible it is the answer (the maneuver does not change at all). Otherwise
+a solve warm-started from it, with the approach NLP's base offset θ_b(0) pinned at the previous plan's
+(:mod:`lut.query.pinned_solve`), runs in a child process killed at the budget; its plan is re-simulated and
+verified like a query's refine, and replaces the shifted one if it is feasible.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from lut.query.pinned_solve import PINNED_SOLVER
+from lut.solve.point_process import run_point
+from lut.table.point_result import PointStatus
+from planner.errors import LutgenError
+
+if TYPE_CHECKING:
+    from planner.config.scenario import Scenario
+    from planner.model.target import TargetState
+    from planner.plan import GraspPlan
+    from planner.plan_parameters import PlanParameters
+    from planner.verify.verifier import VerifyReport
+
+FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export the new plan [s]
+BASE_PIN_TOL_M = 1e-9  # the new base offset must be the previous one (pinned bounds) [m]
+
+
+@dataclass(frozen=True)
+class Replan:
+    """The new plan (times from the new observation), its verification, and how its schedule moved."""
+
+    plan: GraspPlan
+    report: VerifyReport
+    start_shift_s: float  # new approach start − previous one, both on the previous observation's clock [s]
+    solve_s: float
+    source: str  # "previous plan" (shifted, unchanged) or "re-solved" (base offset pinned)
+    solve_failure: str = ""  # why a solve that was needed gave no feasible plan
+
+
+def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, since_s: float,
+           budget_s: float) -> Replan:
+    """The module docstring's re-plan of ``state`` (observed ``since_s`` [s] after the previous estimate)."""
+    from planner.plan import Planner
+    from planner.verify.verifier import verify
+
+    tau = previous.approach.start_delay_s
+    if not (np.isfinite(since_s) and 0.0 <= since_s < tau):
+        raise LutgenError(f"--since-s: the new estimate must come after the previous one and before its approach "
+                          f"starts at {tau:.3f} s, got {since_s}")
+    t0 = time.perf_counter()
+    if budget_s - FINISH_RESERVE_S < 5.0:
+        raise LutgenError(f"--budget-s: a re-plan needs at least {FINISH_RESERVE_S + 5.0:g} s, got {budget_s:g}")
+    planner = Planner(scenario)
+    shifted = planner.simulate(state, previous.with_start_delay(tau - since_s))
+    shifted_report = verify(shifted)
+    if shifted_report.feasible:
+        return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan")
+    room = budget_s - FINISH_RESERVE_S - (time.perf_counter() - t0)
+    solved = run_point(PINNED_SOLVER, str(scenario.source), -1, state, previous, -since_s, timeout_s=max(room, 1.0),
+                       max_wall_s=max(1.0, room / 4), timeout_name="--budget-s")
+    if solved.status not in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) or solved.parameters is None:
+        return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
+                      solved.failure_reason or solved.status.value)
+    new = solved.parameters
+    gap = float(np.abs(np.asarray(new.approach.base_offset_m) - np.asarray(previous.approach.base_offset_m)).max())
+    if gap > BASE_PIN_TOL_M:  # the pinned bounds hold it: anything else is a broken solve, not a plan to fly
+        raise LutgenError(f"the re-plan moved the base offset by {gap:.3g} m although it was pinned")
+    plan = planner.simulate(state, new)
+    report = verify(plan)
+    if not report.feasible:
+        return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
+                      "the re-solved plan is infeasible too: " + "; ".join(report.violations)[:200])
+    return Replan(plan, report, since_s + new.approach.start_delay_s - tau, time.perf_counter() - t0, "re-solved")

@@ -1,0 +1,127 @@
+"""``lutgen query --robust``: among the plans a query can produce inside its budget, the one that absorbs a
+given observation error best (``lutgen robustness``'s success probability, on the same draws for each).
+
+The candidates, in order: the plain query's answer (exactly what ``lutgen query`` would return: interpolated,
+nearest, refined or solved), each feasible corner of the cell carried to the state's phase, and, while the
+budget allows and the plain answer was not already solved, a warm-started solve from the table's answer.
+Each is re-simulated and verified at the observed state; a feasible one is executed against the same drawn
+true states (common random numbers, so the comparison is paired), and the highest success probability
+wins; a tie keeps the earlier candidate, so the plain answer is replaced only by a strictly more robust
+plan. The plain answer is always judged, even when its own solve used the whole budget.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from lut.query.result import QuerySource
+from lut.robustness.error_model import ErrorModel, perturbed_states, standard_draws
+from lut.robustness.execution import register_planner, run_states
+from lut.robustness.statistics import SuccessEstimate, success_estimate
+from lut.table.point_result import PointStatus
+
+if TYPE_CHECKING:
+    from lut.query.table_query import TableQuery
+    from planner.model.target import TargetState
+    from planner.plan import GraspPlan
+    from planner.verify.verifier import VerifyReport
+
+FINISH_RESERVE_S = 3.0  # kept back from the budget to print and export the chosen plan [s]
+MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
+
+
+@dataclass(frozen=True)
+class RobustRequest:
+    """The error the choice is made at, and how many drawn runs judge each candidate."""
+
+    model: ErrorModel
+    samples: int
+    seed: int
+    jobs: int
+    step_s: float = 0.02  # verify's step for every run [s]
+
+
+@dataclass(frozen=True)
+class RobustCandidate:
+    """One plan the query could give: where it came from, its verification at the observed state, and its
+    success estimate at the requested error (None: infeasible as observed, not drawn)."""
+
+    label: str
+    source: QuerySource
+    plan: GraspPlan
+    report: VerifyReport
+    estimate: SuccessEstimate | None
+
+
+@dataclass(frozen=True)
+class RobustChoice:
+    """The chosen candidate (the plain answer when none is feasible at the observed state) and every one judged."""
+
+    chosen: RobustCandidate
+    candidates: list[RobustCandidate]
+    corners: list[int]
+    elapsed_s: float
+    refine_failure: str = ""  # why a refine the budget allowed gave no plan ("" when none failed)
+
+
+def candidate_lines(choice: RobustChoice) -> list[str]:
+    """One line per judged candidate: verdict at the observed state and success estimate; the chosen one marked."""
+    lines = []
+    for c in choice.candidates:
+        mark = "→" if c is choice.chosen else " "
+        if c.estimate is None:
+            why = "; ".join(c.report.violations)[:80]
+            lines.append(f"{mark} {c.label:<14} infeasible at the observed state ({why})")
+            continue
+        e = c.estimate
+        lines.append(f"{mark} {c.label:<14} success {e.successes}/{e.runs} = {e.probability:.3f}, "
+                     f"Wilson 95 % [{e.low:.3f}, {e.high:.3f}]")
+    if choice.refine_failure:
+        lines.append(f"  refined        no plan: {choice.refine_failure}")
+    return lines
+
+
+def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, budget_s: float) -> RobustChoice:
+    """The module docstring's choice for ``state``: the plain query within ``budget_s`` [s] first (always judged),
+    then the other candidates while what is left of the budget covers the dearest judgement so far."""
+    t0 = time.perf_counter()
+    register_planner(str(tq.scenario_path), tq.planner)
+    states = perturbed_states(state, request.model, standard_draws(request.samples, request.seed), 1.0)
+    plain = tq.query(state, budget_s=max(budget_s - FINISH_RESERVE_S, 1.0))
+    c0 = time.perf_counter()
+    judged = [_judge(tq, states, f"plain {plain.source}", plain.source, plain.plan, plain.report, request)]
+    cost_s = time.perf_counter() - c0  # the dearest judgement so far: a next one starts only if this much is left
+
+    def time_left() -> float:
+        return budget_s - (time.perf_counter() - t0) - FINISH_RESERVE_S
+
+    for c in tq.corner_candidates(state):
+        if time_left() < cost_s:
+            break
+        c0 = time.perf_counter()
+        judged.append(_judge(tq, states, f"corner {c.corner}", QuerySource.NEAREST,
+                             *tq.simulate_and_verify(state, c.parameters, {}), request))
+        cost_s = max(cost_s, time.perf_counter() - c0)
+    found, failure = tq.interpolate(state), ""
+    if found is not None and plain.source not in (QuerySource.REFINED, QuerySource.SOLVED_COLD) \
+            and time_left() - cost_s >= MIN_REFINE_S:
+        refined = tq.refine(state, found.parameters, time_left() - cost_s)
+        if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
+            judged.append(_judge(tq, states, "refined", QuerySource.REFINED,
+                                 *tq.simulate_and_verify(state, refined.parameters, {}), request))
+        else:
+            failure = refined.failure_reason or refined.status.value
+    feasible = [c for c in judged if c.estimate is not None]
+    chosen = max(feasible, key=lambda c: c.estimate.probability if c.estimate else -1.0, default=judged[0])
+    return RobustChoice(chosen, judged, plain.corners_used, time.perf_counter() - t0, failure)
+
+
+def _judge(tq: TableQuery, states: list[TargetState], label: str, source: QuerySource, plan: GraspPlan,
+           report: VerifyReport, request: RobustRequest) -> RobustCandidate:
+    """One candidate, verified at the observed state, executed against ``states`` if it is feasible there."""
+    if not report.feasible:
+        return RobustCandidate(label, source, plan, report, None)
+    outcomes, _ = run_states(str(tq.scenario_path), plan.parameters, states, request.step_s, request.jobs)
+    return RobustCandidate(label, source, plan, report, success_estimate(outcomes))

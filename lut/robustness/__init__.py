@@ -1,0 +1,1 @@
+"""``lutgen robustness``: how much observation error a plan absorbs (error model, parallel runs, statistics, report)."""
