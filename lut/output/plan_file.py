@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from planner.errors import LutgenError
 
 SCHEMA = "lutgen.plan/1"  # the same tag lut.output.export writes (not imported: export pulls in the whole planner)
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]  # lut/output/plan_file.py → the repository
 
 # sample key -> columns per row (1 = a plain vector)
 SAMPLE_WIDTHS: dict[str, int] = {

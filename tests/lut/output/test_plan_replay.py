@@ -66,3 +66,12 @@ def test_plot_reads_a_plan_file_with_parameters(tmp_path):
     assert res.returncode == 0, res.stderr
     assert len(list((tmp_path / "new").glob("*.png"))) >= 5
     assert_one_line_error(lutgen_in_process("plot", tmp_path / "missing.json", "-o", tmp_path / "m"), "no such")
+
+
+def test_a_plans_relative_urdf_is_found_from_another_folder(tmp_path, monkeypatch):
+    from lut.output.plan_file import resolve_robot_urdf
+
+    monkeypatch.chdir(tmp_path)  # not the repository: the relative path resolves against the repository root
+    found = resolve_robot_urdf({"robot_urdf": "configs/robots/chaser7.urdf"})
+    assert found is not None and found == (ROOT / "configs/robots/chaser7.urdf").resolve()
+    assert resolve_robot_urdf({"robot_urdf": "configs/robots/missing.urdf"}) is None
