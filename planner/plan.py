@@ -28,7 +28,6 @@ from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
     StabilizationSolution,
-    smooth_stop_params,
     stabilization_spline,
 )
 from planner.phases.tracking import TrackingController, TrackingResult
@@ -159,7 +158,7 @@ class Planner:
         candidate = self.candidate_from(app, *self.approach_and_tracking(app, motion), motion)
         params = given.stabilization_params
         if params is None:
-            params = smooth_stop_params(self.stabilization_spline, self.scenario.robot, candidate.grasp)
+            params = candidate.smooth_stop_params()
         # given parameters need no NLP: a query that only simulates and verifies never builds one
         stab = StabilizationSolution.given(np.asarray(params, dtype=float))
         plan = self.assemble(state, candidate, stab, {"approach_s": 0.0, "stabilization_s": 0.0},

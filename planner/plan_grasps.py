@@ -105,6 +105,10 @@ class GraspCandidate:
         ph = self.planner.scenario.phases
         return self.app.start_delay_s + ph.approach_s + ph.tracking_s
 
+    def smooth_stop_params(self) -> Array:
+        """The stabilization parameters of the smooth stop from this grasp (a cold solve's start), without an NLP."""
+        return smooth_stop_params(self.planner.stabilization_spline, self.planner.scenario.robot, self.grasp)
+
     @property
     def problem(self) -> StabilizationProblem:
         """The scenario's stabilization NLP (built on first use, kept by the planner)."""
@@ -224,8 +228,8 @@ class GraspSearch:
                    screen: int | None = None) -> StabilizationSolution:
         """The stabilization from ``candidate`` (this plan's warm start, iteration budget, screen and deadline)."""
         if self.deadline.passed:  # no NLP is built or solved: the smooth stop a cold solve starts from, unsolved
-            params = smooth_stop_params(self.planner.stabilization_spline, self.planner.scenario.robot, candidate.grasp)
-            return replace(StabilizationSolution.given(params), success=False, status=SolveOutcome.OUT_OF_TIME)
+            unsolved = StabilizationSolution.given(candidate.smooth_stop_params())
+            return replace(unsolved, success=False, status=SolveOutcome.OUT_OF_TIME)
         t0 = time.perf_counter()
         result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget, screen,
                                      self.deadline)

@@ -63,8 +63,6 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     figure over ``robust_samples`` drawn states (``lutgen build --robust``).
     """
     from planner.model.target import TargetState
-    from planner.plan import OutOfReach
-    from planner.verify.verifier import verify
 
     planner = _planner(scenario_path, max_wall_s)
     state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
@@ -75,13 +73,11 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
         warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.max_start_delay_s)
     t0 = time.perf_counter()
     deadline = NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
-    try:
-        plan = planner.plan(state, warm_start, deadline)
-    except OutOfReach as exc:
-        return to_record(out_of_reach_result(point, str(exc), time.perf_counter() - t0))
-    result = result_from_plan(point, plan, verify(plan))
+    result = _verified_plan(planner, point, state, warm_start, deadline)
     if cold_fallback and warm_start is not None and result.status is not PointStatus.FEASIBLE and not deadline.passed:
-        result = _cold_if_feasible(planner, point, state, deadline, result)
+        cold = _verified_plan(planner, point, state, None, deadline)
+        kept = cold if cold.status is PointStatus.FEASIBLE else result  # else the neighbour's family's verdict
+        result = replace(kept, iterations=result.iterations + cold.iterations)
     result = replace(result, solve_time_s=time.perf_counter() - t0)
     if robust_attitude_sigma_deg is not None and robust_samples > 0 and result.status is PointStatus.FEASIBLE:
         from lut.robustness.point_figure import point_robustness
@@ -92,20 +88,19 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     return to_record(result)
 
 
-def _cold_if_feasible(planner: Planner, point: int, state: TargetState, deadline: Deadline,
-                      warm: PointResult) -> PointResult:
-    """The cold plan of ``state`` if verify finds it feasible, else ``warm`` (the warm plan's result); the
-    iterations of both solves are counted."""
+def _verified_plan(planner: Planner, point: int, state: TargetState, warm_start: PlanParameters | None,
+                   deadline: Deadline) -> PointResult:
+    """The plan of ``state`` (warm from ``warm_start``, cold without) verified, as the point's result; a cold plan
+    proved out of reach is an infeasible result without parameters."""
     from planner.plan import OutOfReach
     from planner.verify.verifier import verify
 
+    t0 = time.perf_counter()
     try:
-        plan = planner.plan(state, None, deadline)
-    except OutOfReach:
-        return warm
-    cold = result_from_plan(point, plan, verify(plan))
-    kept = cold if cold.status is PointStatus.FEASIBLE else warm
-    return replace(kept, iterations=warm.iterations + cold.iterations)
+        plan = planner.plan(state, warm_start, deadline)
+    except OutOfReach as exc:
+        return out_of_reach_result(point, str(exc), time.perf_counter() - t0)
+    return result_from_plan(point, plan, verify(plan))
 
 
 def _planner(scenario_path: str, max_wall_s: float | None) -> Planner:
