@@ -32,7 +32,8 @@ def quat_multiply(q1: ArrayLike, q2: ArrayLike) -> NDArray[np.float64]:
 def quat_to_matrix(q: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix of a ``[w, x, y, z]`` quaternion (normalised first); a stack (..., 4) gives (..., 3, 3)."""
     q = np.asarray(q, dtype=float)
-    w, x, y, z = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
+    unit = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = unit if q.ndim == 1 else np.moveaxis(unit, -1, 0)  # one quaternion: no axis shuffling
     R = np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],

@@ -195,6 +195,7 @@ class _RateLaw:
         self.kn = sc.tracking.nullspace_gain
         self.T = sc.phases.tracking_s
         self.qd_max = sc.robot.qd_max
+        self.identity = np.eye(len(self.qd_max))  # the null-space projector's I
         self.peak_demand = 0.0  # max over the calls of |q̇ asked by the law| / q̇_max, before the cap
         # what depends on the time alone, at every RK4 stage in one batch (the integration asks for each twice)
         stages = list(dict.fromkeys(desired.stages))
@@ -219,7 +220,7 @@ class _RateLaw:
         null = self.kn * at.grad_manipulability
         if ref is not None:
             null = null + ref[1] + self.K * (ref[0] - q)
-        qd += (np.eye(len(q)) - J_pinv @ J) @ (ramp * null)
+        qd += (self.identity - J_pinv @ J) @ (ramp * null)
         qd = self._capped(qd)
         return qd, self.kinematics.base_pose_rate(q, qd, x)
 

@@ -21,7 +21,7 @@ TRACKING_NODES = (BLEND_END, CLOSE_END, 1.0)
 
 def smoothstep5(s: ArrayLike) -> NDArray[np.float64]:
     """Quintic 0→1 blend of ``s`` clipped to [0, 1], zero first and second derivatives at both ends."""
-    s = np.clip(np.asarray(s, dtype=float), 0.0, 1.0)
+    s = np.minimum(np.maximum(np.asarray(s, dtype=float), 0.0), 1.0)  # np.clip, without its per-call overhead
     return s**3 * (10 - 15 * s + 6 * s**2)
 
 

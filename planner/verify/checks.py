@@ -127,18 +127,22 @@ def collision_check(sc: Scenario, layout: SceneLayout, T_bodies: dict[str, Array
     slack = sweep.distance_m - required
     i, j = np.unravel_index(int(np.argmin(slack)), slack.shape)
     names = layout.pair_names()
-    label = f"{names[j]} ({sweep.shape_pair[i][j][0]}/{sweep.shape_pair[i][j][1]})"
+    label = _pair_label(names[j], sweep.shape_pair(i, j))
     k = int(sel[i])
     check = make_check("collision", sweep.distance_m[i, j], required[i, j], "m",
                        f"{label} at {when(t[k], phase_index[k])}", t[k], lower=True, tol=FEASIBILITY_TOL)
     held = np.where(required == margin, sweep.distance_m, np.inf)
     jmin = np.argmin(held, axis=1)
     rows = np.arange(len(sel))
-    closest = [f"{names[c]} ({sweep.shape_pair[r][c][0]}/{sweep.shape_pair[r][c][1]})" for r, c in zip(rows, jmin,
-                                                                                                      strict=True)]
+    closest = [_pair_label(names[c], sweep.shape_pair(r, c)) for r, c in zip(rows, jmin, strict=True)]
     points = np.stack([sweep.p_world_a[rows, jmin], sweep.p_world_b[rows, jmin]], axis=1)
     pair_min = {name: float(v) for name, v in zip(names, held.min(axis=0), strict=True)}
     return check, CollisionSamples(held[rows, jmin], closest, points, pair_min)
+
+
+def _pair_label(pair: str, shapes: tuple[str, str]) -> str:
+    """``"A-B (shapeA/shapeB)"``: a pair and the shapes realising its distance."""
+    return f"{pair} ({shapes[0]}/{shapes[1]})"
 
 
 def _relative_deviation(dh: Array, h_arm: Array, h_ref: Array) -> tuple[Array, float, float]:
@@ -161,15 +165,13 @@ def momentum_checks(chaser: PinKinematics, compound: PinKinematics, motion: Targ
     h_chaser_grasp = np.zeros(6)
     for name, model, rows in (("momentum_chaser", chaser, np.flatnonzero(sel <= k_pre)),
                               ("momentum_compound", compound, np.flatnonzero(sel >= k_post))):
-        h, h_arm = np.empty((len(rows), 6)), np.empty((len(rows), 6))
         ks = sel[rows]
         v, w = np.empty((len(rows), 3)), np.empty((len(rows), 3))
         phases = np.full(len(rows), 2) if name == "momentum_compound" else np.minimum(phase_index[ks], 1)
         for p in np.unique(phases):
             part = phases == p
             v[part], w[part] = base_twist_world(t, x, ks[part], segments[p])
-        for r, k in enumerate(ks):
-            h[r], h_arm[r] = model.momentum(x[k], q[k], v[r], w[r], qd[k])
+        h, h_arm = model.momenta(x[ks], q[ks], v, w, qd[ks])
         momentum[rows] = h
         h_ref = np.zeros(6) if name == "momentum_chaser" else h[0]  # rows[0] is the grasp instant
         rel, sP, sL = _relative_deviation(h - h_ref, h_arm, h_ref)

@@ -14,8 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.collision.contact_rule import TRACKING, closed_backoff_m, required_clearance_m
+from planner.collision.contact_rule import (
+    APPROACH,
+    STABILIZATION,
+    TRACKING,
+    closed_backoff_m,
+    required_clearance_m,
+)
 from planner.collision.layout import SceneLayout
+from planner.model.shapes import PlacedShape
 from planner.verify.distance import shape_distance
 
 Array = NDArray[np.float64]
@@ -24,12 +31,17 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class PairSweep:
     """Signed distances of every layout pair at n samples: ``distance_m`` (n, m), witness points on A and on
-    B ``p_world_a``, ``p_world_b`` (n, m, 3), and the shapes realising each minimum ``shape_pair`` (n, m)."""
+    B ``p_world_a``, ``p_world_b`` (n, m, 3), and which shapes realise each minimum (:meth:`shape_pair`)."""
 
     distance_m: Array
     p_world_a: Array
     p_world_b: Array
-    shape_pair: list[list[tuple[str, str]]]
+    combo: NDArray[np.int_]  # (n, m) index into ``shape_names[pair]`` of the shapes realising the minimum
+    shape_names: list[list[tuple[str, str]]]  # per pair, its (shape of A, shape of B) combinations
+
+    def shape_pair(self, i: int, j: int) -> tuple[str, str]:
+        """Names of the shape of A and of B realising pair ``j``'s distance at sample ``i``."""
+        return self.shape_names[j][self.combo[i, j]]
 
 
 def sweep_pairs(layout: SceneLayout, T_world_frame: dict[str, Array]) -> PairSweep:
@@ -41,19 +53,25 @@ def sweep_pairs(layout: SceneLayout, T_world_frame: dict[str, Array]) -> PairSwe
     pa, pb = np.zeros((n, m, 3)), np.zeros((n, m, 3))
     combo = np.zeros((n, m), dtype=int)
     names: list[list[tuple[str, str]]] = []
+    posed: dict[tuple[str, str], Array] = {}  # (body, shape) → its (n, 4, 4) world poses, once per sweep
+
+    def world_pose(body: str, shape: PlacedShape) -> Array:
+        key = (body, shape.name)
+        if key not in posed:
+            posed[key] = T_world_frame[bodies[body].frame_name] @ shape.T_body_shape
+        return posed[key]
+
     for k, (a, b) in enumerate(layout.pairs):
         names.append([])
         for sa in bodies[a].shapes:
-            Ta = T_world_frame[bodies[a].frame_name] @ sa.T_body_shape
             for sb in bodies[b].shapes:
-                r = shape_distance(sa.shape, Ta, sb.shape, T_world_frame[bodies[b].frame_name] @ sb.T_body_shape)
+                r = shape_distance(sa.shape, world_pose(a, sa), sb.shape, world_pose(b, sb))
                 better = r.distance_m < d[:, k]
                 d[better, k] = r.distance_m[better]
                 pa[better, k], pb[better, k] = r.p_world_a[better], r.p_world_b[better]
                 combo[better, k] = len(names[k])
                 names[k].append((sa.name, sb.name))
-    labels = [[names[k][c] for k, c in enumerate(row)] for row in combo]
-    return PairSweep(d, pa, pb, labels)
+    return PairSweep(d, pa, pb, combo, names)
 
 
 def required_clearances(layout: SceneLayout, margin_m: float, t_s: Array, phase_index: Array,
@@ -61,7 +79,10 @@ def required_clearances(layout: SceneLayout, margin_m: float, t_s: Array, phase_
     """(n, m) smallest signed distance each pair may have at each sample (``-inf``: exempt), by the contact rule."""
     t_start, t_end = (float(v) for v in phases["tracking"])
     out = np.empty((len(t_s), len(layout.pairs)))
-    for i, (t, p) in enumerate(zip(t_s, phase_index, strict=True)):
-        closed = closed_backoff_m(backoff0_m, float(t) - t_start, t_end - t_start) if p == TRACKING else 0.0
-        out[i] = required_clearance_m(layout.pairs, layout.gripper_handle, margin_m, int(p), closed)
+    out[:] = required_clearance_m(layout.pairs, layout.gripper_handle, margin_m, APPROACH)
+    out[phase_index == STABILIZATION] = required_clearance_m(layout.pairs, layout.gripper_handle, margin_m,
+                                                             STABILIZATION)  # no back-off closes outside tracking
+    for i in np.flatnonzero(phase_index == TRACKING):
+        closed = closed_backoff_m(backoff0_m, float(t_s[i]) - t_start, t_end - t_start)
+        out[i] = required_clearance_m(layout.pairs, layout.gripper_handle, margin_m, TRACKING, closed)
     return out

@@ -25,8 +25,9 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from planner.model.robot import RobotModel, pin_configuration, pin_velocity
-from planner.model.rotation import matrix_to_quat, quat_to_matrix, rotation_log
+from planner.model.quaternion_rows import matrices_to_quats, quats_to_matrices
+from planner.model.robot import RobotModel, pin_configuration
+from planner.model.rotation import quat_to_matrix, rotation_log
 
 Array = NDArray[np.float64]
 
@@ -44,7 +45,7 @@ class PoseSamples(NamedTuple):
 
 def pose_samples(T_world: Array) -> PoseSamples:
     """(n, 4, 4) homogeneous transforms → :class:`PoseSamples`."""
-    return PoseSamples(T_world[:, :3, 3].copy(), np.array([matrix_to_quat(T[:3, :3]) for T in T_world]).reshape(-1, 4))
+    return PoseSamples(T_world[:, :3, 3].copy(), matrices_to_quats(T_world[:, :3, :3]))
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -203,9 +204,45 @@ class PinKinematics:
         return {name: np.array(self.data.oMf[fid].homogeneous) for name, fid in zip(self.body_names, self.body_ids,
                                                                                     strict=True)}
 
+    def sampled_poses(self, x_base: Array, q: Array, bodies_at: Array) -> tuple[Array, dict[str, Array]]:
+        """Gripper poses (n, 4, 4) at every row of ``x_base`` (n, 7) and ``q`` (n, n_joints), and each body's poses
+        (len(bodies_at), 4, 4) at the rows ``bodies_at`` (ascending), world frame."""
+        configs = pin_configurations(x_base, q)
+        T_ee = np.empty((len(configs), 4, 4))
+        T_bodies = np.empty((len(self.body_ids), len(bodies_at), 4, 4))
+        row_of = np.full(len(configs), -1)
+        row_of[bodies_at] = np.arange(len(bodies_at))
+        for k, config in enumerate(configs):
+            pin.framesForwardKinematics(self.model, self.data, config)
+            T_ee[k] = self.data.oMf[self.ee_id].homogeneous
+            if row_of[k] >= 0:
+                for b, fid in enumerate(self.body_ids):
+                    T_bodies[b, row_of[k]] = self.data.oMf[fid].homogeneous
+        return T_ee, dict(zip(self.body_names, T_bodies, strict=True))
+
     def momentum(self, x_base: Array, q: Array, v_world_base: Array, omega_world_base: Array,
                  qd: Array) -> tuple[Array, Array]:
         """Centroidal momentum ``[P; L_G]`` (world, N·s and N·m·s) and the part due to the joint rates alone."""
-        A_g = pin.computeCentroidalMap(self.model, self.data, self._q(x_base, q))
-        nu = pin_velocity(quat_to_matrix(x_base[3:]), v_world_base, omega_world_base, qd)
-        return A_g @ nu, A_g[:, 6:] @ qd
+        h, h_arm = self.momenta(*(np.asarray(a, dtype=float)[None] for a in (x_base, q, v_world_base,
+                                                                             omega_world_base, qd)))
+        return h[0], h_arm[0]
+
+    def momenta(self, x_base: Array, q: Array, v_world_base: Array, omega_world_base: Array,
+                qd: Array) -> tuple[Array, Array]:
+        """:meth:`momentum` at every row: (n, 6) ``[P; L_G]`` and (n, 6) joint-rate part, from (n, ·) rows."""
+        configs = pin_configurations(x_base, q)
+        quat = x_base[:, 3:] / np.linalg.norm(x_base[:, 3:], axis=-1, keepdims=True)
+        R = quats_to_matrices(quat)
+        nu = np.concatenate([np.einsum("nji,nj->ni", R, v_world_base), np.einsum("nji,nj->ni", R, omega_world_base),
+                             qd], axis=1)  # pinocchio's free-flyer velocity: the base twist in the base frame
+        h, h_arm = np.empty((len(configs), 6)), np.empty((len(configs), 6))
+        for k, config in enumerate(configs):
+            A_g = pin.computeCentroidalMap(self.model, self.data, config)
+            h[k], h_arm[k] = A_g @ nu[k], A_g[:, 6:] @ qd[k]
+        return h, h_arm
+
+
+def pin_configurations(x_base: Array, q: Array) -> Array:
+    """Pinocchio configurations ``[p, quat(x, y, z, w), q]`` (n, 7 + n_joints) of base poses ``[p, quat wxyz]`` (n, 7)
+    and joints (n, n_joints), row by row."""
+    return np.concatenate([x_base[:, :3], x_base[:, 4:7], x_base[:, 3:4], q], axis=1)

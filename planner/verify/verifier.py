@@ -217,21 +217,13 @@ def _world(plan: VerifiablePlan, s: _Samples, sel: Array) -> _World:
     chaser = PinKinematics(sc.robot)
     compound = PinKinematics(compound_robot(sc, T_ee_target))
     n = len(s.t)
-    T_ee = np.empty((n, 4, 4))
-    verified = set(sel.tolist())
-    bodies: dict[str, list[Array]] = {name: [] for name in sc.robot.body_names}
-    for k in range(n):
-        chaser.forward(s.x[k], s.q[k])
-        T_ee[k] = chaser.ee_pose()
-        if k in verified:
-            for name, T in chaser.body_poses().items():
-                bodies[name].append(T)
+    T_ee, T_bodies = chaser.sampled_poses(s.x, s.q, sel)
     T_free = np.tile(np.eye(4), (n, 1, 1))
     T_free[:, :3, :3], T_free[:, :3, 3] = motion.body_pose(s.t)
     T_attached = T_ee @ T_ee_target
     T_target = np.where((s.t > s.t_grasp + TIME_TOL_S)[:, None, None], T_attached, T_free)
     return _World(motion, chaser, compound, T_body_grasp, T_ee, T_free, T_attached, T_target,
-                  {name: np.array(Ts) for name, Ts in bodies.items()}, scene_layout(sc.robot, sc.target))
+                  T_bodies, scene_layout(sc.robot, sc.target))
 
 
 def _run_checks(plan: VerifiablePlan, s: _Samples, w: _World,

@@ -401,3 +401,23 @@ def test_verify_passes_a_rate_exactly_at_its_limit_and_fails_2e6_beyond(builder,
     assert_only_joint_check_differs(at, beyond, "joint_velocity")
     assert beyond.checks["joint_velocity"].t_s == pytest.approx(plan.t[k])
     assert beyond.checks["joint_velocity"].where.startswith("joint7 ")
+
+
+def test_sampled_poses_equal_forward_kinematics_row_by_row(robot):
+    """PinKinematics.sampled_poses (every configuration in one call, bodies at chosen rows) gives exactly the poses
+    of forward + ee_pose + body_poses at each row, at every degenerate configuration."""
+    qs = np.array(list(configurations(robot).values()))
+    rng = np.random.default_rng(4)
+    quats = rng.normal(size=(len(qs), 4))
+    x_base = np.hstack([rng.uniform(-1, 1, (len(qs), 3)), quats / np.linalg.norm(quats, axis=1, keepdims=True)])
+    rows = np.arange(0, len(qs), 2)
+    kin = PinKinematics(robot)
+    T_ee, T_bodies = kin.sampled_poses(x_base, qs, rows)
+    assert list(T_bodies) == list(robot.body_names)
+    for k in range(len(qs)):
+        kin.forward(x_base[k], qs[k])
+        np.testing.assert_array_equal(T_ee[k], kin.ee_pose())
+        if k in rows:
+            r = int(np.flatnonzero(rows == k)[0])
+            for name, T in kin.body_poses().items():
+                np.testing.assert_array_equal(T_bodies[name][r], T)
