@@ -13,7 +13,7 @@ next scanned meeting times (:mod:`planner.plan_grasps`). Times are seconds since
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,6 +31,7 @@ from planner.phases.stabilization import (
     stabilization_spline,
 )
 from planner.phases.tracking import TrackingController, TrackingResult
+from planner.plan_costed import plan_costed
 from planner.plan_grasps import (
     GRASP_GUESSES,
     RATE_DEMAND_TOLERATED,
@@ -106,6 +107,7 @@ class Planner:
         self.approach = ApproachProblem(scenario, self.ff)
         self.tracking = TrackingController(scenario, self.ff)
         self._stabilization: StabilizationProblem | None = None
+        self._feasibility: Planner | None = None
         self.stabilization_spline = stabilization_spline(scenario)
         self.build_time_s = time.perf_counter() - t0
 
@@ -124,8 +126,9 @@ class Planner:
         reachable time the approach NLP would only search from θ_in for minutes). A cold plan whose
         stabilization fails from the first grasp tries the grasps the approach reaches from its next scanned
         guesses (:class:`~planner.plan_grasps.GraspSearch`). A warm plan keeps its grasp (a table's neighbours
-        stay in one family of solutions). Past ``deadline`` no new solve starts and a running one ends: the plan
-        is what was found by then (its notes say so; verify judges it).
+        stay in one family of solutions). With approach costs (Eq. 14-16) the plan is that feasibility plan's grasp
+        with its cost then lowered from there (:mod:`planner.plan_costed`). Past ``deadline`` no new solve starts and
+        a running one ends: the plan is what was found by then (its notes say so; verify judges it).
         """
         t_start = time.perf_counter()
         warm = warm_start.parameters if isinstance(warm_start, GraspPlan) else warm_start
@@ -134,11 +137,31 @@ class Planner:
             raise OutOfReach(scan.result, time.perf_counter() - t_start)
         if deadline.bounded and not deadline.passed:
             self._build_stabilization(cold=warm is None)
-        search = GraspSearch(self, state, warm, scan, self.motion(state), deadline)
-        candidate, stab = search.run()
-        plan = self.assemble(state, candidate, stab, search.timings_s(), search.notes)
+        if self.scenario.costs.weights_approach:
+            plan = self._plan_costed(state, warm, scan, deadline)
+        else:
+            search = GraspSearch(self, state, warm, scan, self.motion(state), deadline)
+            candidate, stab = search.run()
+            plan = self.assemble(state, candidate, stab, search.timings_s(), search.notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
+
+    def _plan_costed(self, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
+                     deadline: Deadline) -> GraspPlan:
+        """A plan with approach costs: the feasibility plan's grasp (warm from ``warm`` when given), then its cost
+        lowered from there (:mod:`planner.plan_costed`)."""
+        out = plan_costed(self, self.feasibility_planner, state, warm, scan, self.motion(state), deadline)
+        return self.assemble(state, out.candidate, out.stabilization, out.timings_s, out.notes)
+
+    @property
+    def feasibility_planner(self) -> Planner:
+        """This scenario without its approach costs, sharing this planner's stabilization NLP: the first stage of
+        a costed plan (built on first use)."""
+        if self._feasibility is None:
+            sc = self.scenario
+            self._feasibility = Planner(replace(sc, costs=sc.costs.without_approach_terms()))
+            self._feasibility._stabilization = self.stabilization_problem
+        return self._feasibility
 
     def _build_stabilization(self, cold: bool) -> None:
         """Build the stabilization NLPs a plan will solve now, while its time is left: a build cannot be cut short

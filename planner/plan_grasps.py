@@ -70,7 +70,7 @@ def approach_retry_budget(first_iterations: int) -> int:
     return max(APPROACH_RETRY_MIN, APPROACH_RETRY_FACTOR * first_iterations)
 
 
-class _Planner(Protocol):
+class PhasePlanner(Protocol):
     """What the search needs of :class:`planner.plan.Planner`."""
 
     scenario: Scenario
@@ -91,7 +91,7 @@ class _Planner(Protocol):
 class GraspCandidate:
     """One grasp the approach reached: its approach, tracking and grasp state, ready to stabilize."""
 
-    planner: _Planner
+    planner: PhasePlanner
     app: ApproachSolution
     approach_samples: PhaseSamples
     tracking: TrackingResult
@@ -131,7 +131,7 @@ def accumulated(new: ApproachSolution, old: ApproachSolution) -> ApproachSolutio
 class GraspSearch:
     """One plan's search over grasps: its scan, tracking-rate scale, notes and phase times, for this plan only."""
 
-    def __init__(self, planner: _Planner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
+    def __init__(self, planner: PhasePlanner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
                  motion: TargetMotion, deadline: Deadline = NO_DEADLINE) -> None:
         self.planner, self.state, self.warm, self.scan, self.motion = planner, state, warm, scan, motion
         self.deadline = deadline

@@ -6,7 +6,7 @@ Sections: phases, approach, tracking, stabilization, limits, costs, solver, and 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -165,6 +165,15 @@ class CostWeights:
     attitude_disturbance: float
     peak_wrench: float
     overscale: float  # robot geometry scale for the distance cost (paper §5)
+
+    @property
+    def weights_approach(self) -> bool:
+        """True when a cost term of the approach NLP (Eq. 14-16) is weighted."""
+        return self.manipulability > 0 or self.min_distance > 0 or self.approach_energy > 0
+
+    def without_approach_terms(self) -> CostWeights:
+        """These weights with the approach NLP's terms (Eq. 14-16) set to 0: a costed plan's feasibility stage."""
+        return replace(self, manipulability=0.0, min_distance=0.0, approach_energy=0.0)
 
     @staticmethod
     def read(c: TomlTable) -> CostWeights:

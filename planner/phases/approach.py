@@ -27,6 +27,7 @@ from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.robot import fk_function
+from planner.model.target_state import TargetState
 from planner.nlp import constraint_backoff as backoff
 from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.costs import manipulability_sym
@@ -122,8 +123,23 @@ class ApproachProblem:
         self._options = ipopt_options(sc.solver) | {"iteration_callback": self.budget}
         self.solver = ipopt_solver("approach", self._nlp, self._options)
         self._cold_solver: ca.Function | None = None
+        self._objective: ca.Function | None = None
         dist_bounds = self.lbg[self.constraints.slice("collision")]
         self.held_to_margin = dist_bounds == dist_bounds.max()  # the gripper-handle pair closing in: not held
+
+    def objective_at(self, w: Array, state: TargetState) -> float:
+        """The NLP's weighted cost (Eq. 14-16) at the decision vector ``w`` (without the distance slack) for the
+        observed ``state``; the slack of Eq. 15, when weighted, at its best value (the smallest scaled distance)."""
+        if self._objective is None:
+            self._objective = ca.Function("approach_objective", [self._nlp["x"], self._nlp["p"]],
+                                          [self._nlp["f"], self._nlp["g"]])
+        p = self.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
+                                        "omega_body_rad_s": state.omega_body_rad_s})
+        x = np.concatenate([w, np.zeros(self.n_extra)])
+        if self.n_extra:  # with s = 0 the scaled-distance rows are the scaled distances themselves
+            scaled = np.asarray(self._objective(x, p)[1]).ravel()[self.constraints.slice("scaled_distance")]
+            x[-1] = np.clip(scaled.min(), self.lbw[-1], self.ubw[-1])
+        return float(self._objective(x, p)[0])
 
     def _decision_layout(self) -> VectorLayout:
         """``w``'s blocks and bounds (the optional distance slack is added by the cost)."""

@@ -74,6 +74,26 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
 
 
+def solve_approach_near(problem: ApproachProblem, state: TargetState, anchor: ApproachSolution, radius_m: float,
+                        tracking_speed_scale: float, max_iterations: int | None,
+                        deadline: Deadline = NO_DEADLINE) -> ApproachSolution:
+    """The approach NLP warm from ``anchor`` with its meeting time kept (the start delay pinned) and the base offset
+    θ_b(0) within ``radius_m`` [m] of the anchor's per axis (``inf``: the scenario's bounds only), within
+    ``max_iterations`` IPOPT iterations: a trust-region step of a costed plan (:mod:`planner.plan_costed`)."""
+    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
+    delay, base = problem.decision.slice("start_delay_s"), problem.decision.slice("base_offset_m")
+    lbw[delay] = ubw[delay] = anchor.start_delay_s
+    lbw[base] = np.maximum(lbw[base], anchor.base_offset_m - radius_m)
+    ubw[base] = np.minimum(ubw[base], anchor.base_offset_m + radius_m)
+    return _solve_once(problem, state, decision_vector(anchor), tracking_speed_scale, lbw, ubw,
+                       max_iterations=max_iterations, deadline=deadline)
+
+
+def approach_cost(problem: ApproachProblem, state: TargetState, start: ApproachParameters | ApproachSolution) -> float:
+    """The NLP's weighted cost (Eq. 14-16) of ``start``'s decision parameters for ``state``."""
+    return problem.objective_at(decision_vector(start), state)
+
+
 def _base_pinned_first(problem: ApproachProblem, state: TargetState,
                        warm_start: ApproachParameters | ApproachSolution | None, max_starts: int,
                        tracking_speed_scale: float, skip_guesses: int, deadline: Deadline,

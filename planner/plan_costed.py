@@ -1,0 +1,154 @@
+"""A costed plan (paper Eq. 14-16): a feasible grasp first, then its approach cost lowered in trust-region steps that
+each keep the whole plan feasible.
+
+The approach NLP with a cost, solved on its own, optimises the approach alone: in scenario II its optimum is a grasp
+from which no braking within ±10 N·m exists, and the stabilization NLP can only fail there. So a costed plan first
+finds a stabilized grasp with the feasibility plan; then it solves the costed approach as it stands and keeps that
+grasp if it can be braked and is cheaper (scenario I); then it lowers the approach cost step by step from the best
+grasp: each step re-solves the costed approach warm from the current grasp with the meeting time kept and θ_b(0)
+inside a box of radius r around the current one, tracks, and re-solves the stabilization warm from the current
+spline; the step is kept only if that stabilization succeeds. The full step (r = ∞) is tried first; then r starts
+at :data:`FIRST_RADIUS_M`, doubles after a kept step and halves after a refused one. The plan is feasible as soon as
+the feasibility plan is, and its cost only falls while steps are kept and time remains.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.deadline import Deadline
+from planner.model.target import TargetMotion, TargetState
+from planner.phases.approach_guess import ScanOnDemand
+from planner.phases.approach_solve import approach_cost, solve_approach, solve_approach_near
+from planner.phases.stabilization import StabilizationSolution
+from planner.plan_grasps import (
+    RATE_DEMAND_TOLERATED,
+    SCREEN_BUDGET,
+    STABILIZATION_BUDGET,
+    GraspCandidate,
+    GraspSearch,
+    PhasePlanner,
+    approach_retry_budget,
+)
+from planner.plan_parameters import PlanParameters
+
+FIRST_RADIUS_M = 0.02  # scenario II's default grasp: a 0.02 m box kept the braking feasible, 0.05 m did not
+MIN_RADIUS_M = 0.005  # below this a step moves the base by less than the NLPs' constraint back-off
+MAX_STEPS = 8  # trust-region steps after the full one: each is an approach and a stabilization solve
+STEP_APPROACH_ITERATIONS = 100  # the full step with the meeting time kept took 52 (scenario II)
+STEP_STABILIZATION_ITERATIONS = 30  # steps that kept the braking feasible re-solved it in 8-14
+RELATIVE_GAIN_MIN = 1e-4  # a step must lower the cost by this fraction of max(|cost|, 1)
+
+
+@dataclass
+class CostDescent:
+    """A costed plan's grasp and stabilization as the stages left them, the approach cost at the feasibility plan's
+    grasp and now, and what the stages did (steps, phase times [s], notes)."""
+
+    candidate: GraspCandidate
+    stabilization: StabilizationSolution
+    timings_s: dict[str, float]  # "approach_s", "stabilization_s": every stage's solves [s]
+    notes: list[str]
+    cost_start: float = float("nan")
+    cost_end: float = float("nan")
+    steps_kept: int = 0
+    steps_refused: int = 0
+
+    @property
+    def stabilized(self) -> bool:
+        """True when the current grasp has an approach and a stabilization that succeeded."""
+        return self.candidate.app.success and self.stabilization.success
+
+    def keep(self, candidate: GraspCandidate, stab: StabilizationSolution, cost: float) -> None:
+        """A cheaper grasp whose stabilization succeeded becomes the current one."""
+        self.candidate, self.stabilization, self.cost_end = candidate, stab, cost
+
+    def summary(self) -> str:
+        """One line for the plan's notes."""
+        return (f"costed plan: approach cost {self.cost_start:.6g} at the feasibility plan's grasp, "
+                f"{self.cost_end:.6g} in the end ({self.steps_kept} trust-region steps kept, {self.steps_refused} "
+                "refused; a step keeps the meeting time and is kept only if the stabilization stays feasible)")
+
+
+def plan_costed(planner: PhasePlanner, feasibility: PhasePlanner, state: TargetState, warm: PlanParameters | None,
+                scan: ScanOnDemand, motion: TargetMotion, deadline: Deadline) -> CostDescent:
+    """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): ``feasibility`` (the same
+    scenario without approach costs) finds a stabilized grasp, warm from ``warm`` when given; then the costed
+    approach's own optimum, kept if it can be braked and is cheaper; then the descent."""
+    search = GraspSearch(feasibility, state, warm, scan, motion, deadline)
+    candidate, stab = search.run()
+    out = CostDescent(candidate, stab, search.timings_s(), list(search.notes))
+    if not out.stabilized:
+        return out
+    out.cost_start = out.cost_end = approach_cost(planner.approach, state, candidate.app)
+    _direct_attempt(planner, state, warm, scan, motion, deadline, out)
+    _descend(planner, state, motion, out, search.tracking_speed_scale, deadline)
+    out.notes.append(out.summary())
+    return out
+
+
+def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
+                    motion: TargetMotion, deadline: Deadline, out: CostDescent) -> None:
+    """The costed approach NLP as it stands (its optimum over every meeting time, the paper's sequence) within a
+    retry's iteration budget of the feasibility approach's, its grasp tracked and braked within
+    :data:`STABILIZATION_BUDGET` after the screen: kept when that succeeds and is cheaper (scenario I), else nothing
+    changes (scenario II: no ±10 N·m braking from there)."""
+    if deadline.passed:
+        return
+    app = solve_approach(planner.approach, state, None if warm is None else warm.approach, scan=scan,
+                         max_iterations=approach_retry_budget(out.candidate.app.iterations), deadline=deadline)
+    out.timings_s["approach_s"] += app.solve_time_s
+    if not app.success or deadline.passed or app.cost >= out.cost_end:
+        return
+    candidate = planner.candidate_from(app, *planner.approach_and_tracking(app, motion), motion)
+    if candidate.tracking.peak_rate_demand > RATE_DEMAND_TOLERATED:
+        return
+    stab = candidate.stabilize(None if warm is None else warm.stabilization_params, STABILIZATION_BUDGET,
+                               SCREEN_BUDGET, deadline)
+    out.timings_s["stabilization_s"] += stab.solve_time_s
+    if stab.success:
+        out.keep(candidate, stab, app.cost)
+        out.notes.append("costed plan: the costed approach's own optimum can be braked: it is kept")
+
+
+def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent,
+             tracking_speed_scale: float, deadline: Deadline) -> None:
+    """Trust-region steps from the current grasp: the full step first, then from :data:`FIRST_RADIUS_M`, doubled
+    after a kept step and halved after a refused one; stops after :data:`MAX_STEPS`, below :data:`MIN_RADIUS_M`,
+    when a step gains nothing, or at ``deadline``."""
+    radius = np.inf
+    for _ in range(MAX_STEPS + 1):
+        if deadline.passed or radius < MIN_RADIUS_M:
+            break
+        kept = _step(planner, state, motion, out, radius, tracking_speed_scale, deadline)
+        if kept is None:  # converged: the cost does not fall inside this radius
+            break
+        if kept:
+            radius = 2 * radius if np.isfinite(radius) else 0.0  # a full step kept is this meeting time's optimum
+        else:
+            radius = FIRST_RADIUS_M if not np.isfinite(radius) else radius / 2
+
+
+def _step(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent, radius_m: float,
+          tracking_speed_scale: float, deadline: Deadline) -> bool | None:
+    """One trust-region step: True if kept, False if refused (the approach failed, the tracking asked too much, or
+    the stabilization failed), None if the approach gained nothing."""
+    app = solve_approach_near(planner.approach, state, out.candidate.app, radius_m, tracking_speed_scale,
+                              STEP_APPROACH_ITERATIONS, deadline)
+    out.timings_s["approach_s"] += app.solve_time_s
+    if app.success and app.cost > out.cost_end - RELATIVE_GAIN_MIN * max(abs(out.cost_end), 1.0):
+        return None
+    kept = False
+    if app.success:
+        candidate = planner.candidate_from(app, *planner.approach_and_tracking(app, motion), motion)
+        if candidate.tracking.peak_rate_demand <= RATE_DEMAND_TOLERATED:
+            stab = candidate.stabilize(out.stabilization.params, STEP_STABILIZATION_ITERATIONS, None, deadline)
+            out.timings_s["stabilization_s"] += stab.solve_time_s
+            kept = bool(stab.success)
+            if kept:
+                out.keep(candidate, stab, app.cost)
+    out.steps_kept += kept
+    out.steps_refused += not kept
+    return kept

@@ -1,0 +1,124 @@
+"""A costed plan's descent (planner.plan_costed): its trust-region schedule and acceptance with stand-in solves, the
+NLP's cost read back at a decision vector against Eq. 16 in closed form, and (slow) scenario II with the
+approach-energy cost planned feasible, with a cost no higher than its feasibility plan's."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import planner.plan_costed as costed
+from planner.deadline import NO_DEADLINE, Deadline
+from planner.nlp.costs import approach_energy
+
+
+class _Stand:
+    """A costed approach whose cost is ‖θ_b‖² and a stabilization that succeeds only within ``stable_m`` of the
+    feasible grasp (per axis): the thin stabilizable set of scenario II, in one line."""
+
+    def __init__(self, theta0: np.ndarray, stable_m: float) -> None:
+        self.theta0, self.stable_m = theta0, stable_m
+        self.radii: list[float] = []
+        self.approach = "costed NLP"
+
+    def solve(self, problem, state, anchor, radius_m, scale, max_iterations, deadline):
+        self.radii.append(radius_m)
+        theta = anchor.base_offset_m - np.clip(anchor.base_offset_m, -radius_m, radius_m)  # toward 0 inside the box
+        return SimpleNamespace(success=True, base_offset_m=theta, cost=approach_energy(theta), solve_time_s=1.0)
+
+    def candidate(self, app):
+        ok = bool(np.all(np.abs(app.base_offset_m - self.theta0) <= self.stable_m))
+        stab = SimpleNamespace(success=ok, params=np.zeros(3), solve_time_s=1.0)
+        return SimpleNamespace(app=app, tracking=SimpleNamespace(peak_rate_demand=1.0),
+                               stabilize=lambda warm, budget, screen, deadline: stab)
+
+
+def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE) -> costed.CostDescent:
+    monkeypatch.setattr(costed, "solve_approach_near", stand.solve)
+    planner = SimpleNamespace(approach=stand.approach, approach_and_tracking=lambda app, motion: (None, None),
+                              candidate_from=lambda app, samples, tr, motion: stand.candidate(app))
+    start = stand.candidate(SimpleNamespace(base_offset_m=stand.theta0.copy()))
+    cost = approach_energy(stand.theta0)
+    out = costed.CostDescent(start, SimpleNamespace(params=np.ones(3)), {"approach_s": 0.0, "stabilization_s": 0.0},
+                             [], cost, cost)
+    costed._descend(planner, None, None, out, 1.0, deadline)
+    return out
+
+
+def test_full_step_kept_when_the_optimum_stabilizes(monkeypatch):
+    """No stabilization limit near: the full step (r = ∞) reaches the optimum and the descent stops there."""
+    stand = _Stand(np.array([-0.9, 0.9]), stable_m=10.0)
+    d = _descend(monkeypatch, stand)
+    assert stand.radii == [np.inf]
+    assert d.cost_start == pytest.approx(1.62) and d.cost_end == 0.0 and (d.steps_kept, d.steps_refused) == (1, 0)
+
+
+def test_thin_stabilizable_set_keeps_only_steps_inside_it(monkeypatch):
+    """Stabilizable only within 0.03 m of the feasible grasp: the full step is refused, 0.02 m kept, 0.04 m refused,
+    then the radius halves: the answer stays inside the set, cheaper than the start, and no refused step moves it."""
+    theta0 = np.array([-0.9, 0.9])
+    stand = _Stand(theta0, stable_m=0.03)
+    d = _descend(monkeypatch, stand)
+    assert stand.radii[:3] == [np.inf, costed.FIRST_RADIUS_M, 2 * costed.FIRST_RADIUS_M]
+    theta = d.candidate.app.base_offset_m
+    assert np.all(np.abs(theta - theta0) <= 0.03 + 1e-12)
+    assert d.cost_end == pytest.approx(approach_energy(theta)) and d.cost_end < d.cost_start
+    assert d.steps_kept >= 1 and d.steps_refused >= 2
+    assert min(r for r in stand.radii) >= costed.MIN_RADIUS_M
+    assert len(stand.radii) <= costed.MAX_STEPS + 1
+
+
+def test_nothing_stabilizes_keeps_the_feasible_grasp(monkeypatch):
+    """No step stabilizes: the answer is the feasibility plan's grasp and stabilization, its cost unchanged."""
+    stand = _Stand(np.array([0.5, -0.5]), stable_m=0.0)
+    d = _descend(monkeypatch, stand)
+    assert d.steps_kept == 0 and d.cost_end == d.cost_start == pytest.approx(0.5)
+    assert np.array_equal(d.candidate.app.base_offset_m, [0.5, -0.5]) and np.array_equal(d.stabilization.params,
+                                                                                          np.ones(3))
+
+
+def test_past_the_deadline_no_step_is_tried(monkeypatch):
+    stand = _Stand(np.array([0.5, -0.5]), stable_m=10.0)
+    d = _descend(monkeypatch, stand, Deadline(0.0))
+    assert stand.radii == [] and d.cost_end == d.cost_start
+
+
+@pytest.fixture(scope="module")
+def energy_problem():
+    from planner.config.scenario import load_scenario
+    from planner.phases.approach import ApproachProblem
+
+    return ApproachProblem(load_scenario("configs/scenarios/scenario_I_energy.toml"))
+
+
+def test_objective_at_is_eq16_for_the_energy_variant(energy_problem):
+    """The NLP's cost read back at a decision vector equals ‖θ_b(0)‖² (Eq. 16, weight 1) for any θ_b, the arm's
+    parameters and the state playing no part."""
+    from planner.config.scenario import load_scenario
+
+    state = load_scenario("configs/scenarios/scenario_I.toml").target_state.as_state()
+    rng = np.random.default_rng(16)
+    p = energy_problem
+    for theta in (np.zeros(2), np.array([-1.0, 1.0]), rng.uniform(-1, 1, 2)):
+        w = np.clip(rng.uniform(-0.3, 0.3, p.n_w), p.lbw[: p.n_w], p.ubw[: p.n_w])
+        w[p.decision.slice("base_offset_m")] = theta
+        assert p.objective_at(w, state) == pytest.approx(approach_energy(theta), rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.slow
+def test_scenario_II_energy_plans_feasible_no_costlier_than_its_feasibility_plan():
+    """Scenario II with Eq. 16: feasible by verify (the costed approach alone ends at a grasp no ±10 N·m braking
+    exists from), with θ_b(0) no farther from the origin than the feasibility plan's."""
+    from planner.config.scenario import load_scenario
+    from planner.plan import Planner
+    from planner.verify.verifier import verify
+
+    sc = load_scenario("configs/scenarios/scenario_II_energy.toml")
+    state = sc.target_state.as_state()
+    plan = Planner(sc).plan(state)
+    feasible = Planner(replace(sc, costs=sc.costs.without_approach_terms())).plan(state)
+    assert verify(plan).feasible, verify(plan).violations
+    assert approach_energy(plan.approach.base_offset_m) <= approach_energy(feasible.approach.base_offset_m) + 1e-12
