@@ -12,7 +12,7 @@ Writes JSON (``--out``, default ``out/bench.json``) and prints a digest table. T
 ``{"median", "min", "max", "runs"}`` (plus ``"p95"`` for query latencies) in the unit the key names
 (``_us`` µs, ``_ms`` ms, ``_s`` s). A part a mode does not measure keeps its keys, with null values and
 ``"skipped": reason``. Sections (one module each in ``scripts/bench_sections/``): ``machine``,
-``primitives``, ``query``, ``build``, ``planner``, ``baseline``, ``coverage``. Seeds are fixed (``--seed``).
+``primitives``, ``query``, ``build``, ``planner``, ``baseline``, ``coverage``, ``reach``. Seeds are fixed (``--seed``).
 
 The full run refines every query state whose interpolated plan fails verification, each within
 ``--refine-budget-s`` (default 100 s): with a table that interpolates poorly that adds up to 50 × the budget.
@@ -22,6 +22,9 @@ The full run refines every query state whose interpolated plan fails verificatio
 (a process still running 30 s past it is killed), and the same states through ``lutgen query`` on the tables of
 ``--coverage-tables`` (default ``tables/``): up to 2 × 80 runs of up to 100 s, hours on one core.
 Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``.
+
+``reach`` (issue 20) scans the same seeded states' meeting times only (seconds a state): how many no meeting time
+brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a longer window.
 """
 
 from __future__ import annotations
@@ -43,13 +46,14 @@ from bench_sections.machine import load_average, machine
 from bench_sections.plans import plans
 from bench_sections.primitives import primitives
 from bench_sections.queries import queries
+from bench_sections.reach import reach
 from bench_sections.report import print_report
 
 # JSON key → section; the order they run in (the JSON lists them in the issue's order)
 SECTIONS: dict[str, Callable[[Settings], dict[str, Any]]] = {
     "primitives": primitives, "query": queries, "build": builds, "baseline": baseline, "planner": plans,
-    "coverage": coverage}
-JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline", "coverage")
+    "coverage": coverage, "reach": reach}
+JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline", "coverage", "reach")
 
 
 def positive_int(text: str) -> int:

@@ -123,8 +123,15 @@ def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:
     return f"coverage ({c['states_per_kind']} states per kind, budget {c['budget_s']:g} s, {c['jobs']} at a time)", rows
 
 
+def _reach(r: dict[str, Any]) -> tuple[str, list[Row]]:
+    rows = [(f"{kind} {name}", f"{e['out_of_reach']}/{e['states']} out of reach")
+            for kind, entry in r.items() if isinstance(entry, dict) and kind not in ("what_ifs",)
+            for name, e in entry.items()]
+    return f"reach ({r['states_per_kind']} states per kind, the scan of meeting times only)", rows
+
+
 SECTIONS = {"primitives": _primitives, "query": _query, "build": _build, "planner": _planner,
-            "baseline": _baseline, "coverage": _coverage}
+            "baseline": _baseline, "coverage": _coverage, "reach": _reach}
 
 
 def print_report(result: dict[str, Any]) -> None:

@@ -233,6 +233,45 @@ def test_joint_velocity_jump_at_a_phase_join_is_caught(builder, phase, name):
         assert report.checks["join_velocity_approach_tracking"].passed
 
 
+def with_onset(path, joint: int, rate_rad_s: float, t_join: float, tau_s: float):
+    """``path`` plus a rate onset on one joint after ``t_join``: ``q̇ += A x³ / (1 + x³)``, x = (t − t_join)/τ, and
+    its exact integral on ``q`` (by quadrature): continuous with zero rate, acceleration and jerk at the join, but
+    far from a quartic on the samples next to it, like the tracking IK's onset."""
+    from scipy.integrate import quad
+
+    def extra_rate(t: float) -> float:
+        x = max(t - t_join, 0.0) / tau_s
+        return rate_rad_s * x**3 / (1 + x**3)
+
+    def onset(t: float) -> tuple[np.ndarray, np.ndarray]:
+        q, qd = path(t)
+        if t > t_join:
+            q, qd = q.copy(), qd.copy()
+            q[joint] += quad(extra_rate, t_join, t, epsabs=1e-14, epsrel=1e-12)[0]
+            qd[joint] += extra_rate(t)
+        return q, qd
+
+    return onset
+
+
+def test_a_continuous_rate_onset_at_a_join_is_not_a_jump_and_a_jump_on_it_is(builder):
+    """A rate that grows like t³ from the join (the tracking's onset) is continuous: the one-sided extrapolation
+    from the next samples misses it by more than 1e-6 rad/s, which is its truncation error, not a jump. The check
+    passes it, and still catches a real jump ten times its resolution on the same onset."""
+    t_join = T0 + T_APP
+    onset = with_onset(baseline_path, 3, 0.036, t_join, 0.1)  # 36 t³ at first, as scenario II at 2 °/s
+    plan = builder.plan(onset)
+    tracking = np.flatnonzero(plan.phase_index == 1)
+    quartic, cubic = (fd_weights(plan.t[tracking[:n]] - t_join, 0.0, 0) @ plan.qd[tracking[:n], 3] for n in (5, 4))
+    assert abs(quartic - baseline_path(t_join)[1][3]) > 1e-5  # what the check used to call a jump
+    check = verify(plan).checks["join_velocity_approach_tracking"]
+    assert check.passed, check.where
+    jump = 10 * (abs(quartic - cubic) + 1e-6)  # ten times what the check can resolve on joint 4
+    plan.qd[tracking, 3] += jump
+    check = verify(plan).checks["join_velocity_approach_tracking"]
+    assert not check.passed and check.value == pytest.approx(jump, rel=0.2)
+
+
 # ----------------------------------------------------------------------------------------------------
 # Grasp, end state and wrench against independent references
 
