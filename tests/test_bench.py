@@ -95,12 +95,13 @@ def _walk_skips(node: Any, where: str = "") -> None:
 
 def test_every_section_is_there_and_every_skip_says_why(run):
     bench, stdout = run
-    assert list(bench) == ["machine", "primitives", "query", "build", "planner", "baseline", "coverage", "wall_s"]
+    assert list(bench) == ["machine", "primitives", "query", "build", "planner", "baseline", "coverage", "reach",
+                           "wall_s"]
     _walk_skips(bench)
-    for section in ("primitives", "query", "build", "planner", "baseline", "coverage"):
+    for section in ("primitives", "query", "build", "planner", "baseline", "coverage", "reach"):
         assert _positive(bench[section]["section_wall_s"]), section
     # the readable table names every section
-    for title in ("lutgen bench", "primitives", "query", "build", "planner", "baseline", "coverage", "wrote"):
+    for title in ("lutgen bench", "primitives", "query", "build", "planner", "baseline", "coverage", "reach", "wrote"):
         assert title in stdout, title
 
 
@@ -358,3 +359,17 @@ def test_tables_are_matched_by_scenario_and_grid_kind(tmp_path, monkeypatch):
     assert found == {"scenario_I_flat_spin": tmp_path / "a_tumble.h5", "scenario_I_tumble": tmp_path / "a_tumble.h5"}
     assert lines[0].endswith("a_tumble.h5: scenario_I tumble") and "refused" in lines[1]
     assert coverage_tables.find_tables(tmp_path / "absent", []) == ({}, [])
+
+
+def test_reach_counts_each_what_if_over_the_coverage_states(bench):
+    """The reach section scans the coverage section's states (the same kinds and count) under every what-if, and each
+    count is the length of its list of state indices."""
+    r = bench["reach"]
+    assert r["what_ifs"][0] == "scenario" and len(r["what_ifs"]) == 3
+    kinds = [k for k in r if k.startswith("scenario_")]
+    assert kinds == list(bench["coverage"]["plans"].keys() & set(kinds)) and kinds
+    for kind in kinds:
+        for name in r["what_ifs"]:
+            e = r[kind][name]
+            assert e["states"] == r["states_per_kind"] and e["out_of_reach"] == len(e["indices"])
+            assert all(0 <= i < e["states"] for i in e["indices"])
