@@ -170,11 +170,14 @@ class Planner:
         if cold and problem.coarse_via_points > 0:
             problem.coarse_problem()
 
-    def simulate(self, state: TargetState, given: PlanParameters) -> GraspPlan:
+    def simulate(self, state: TargetState, given: PlanParameters, resolve_iterations: int | None = None) -> GraspPlan:
         """The plan that given parameters produce for ``state``, without solving (table queries).
 
         The approach parameters are used as they are; the tracking IK runs from where they end; the
         stabilization parameters are applied to Eq. 24 from the actual grasp state. ``verify`` decides.
+        With ``resolve_iterations`` the stabilization is what the flight software would fly once grasped: its NLP
+        solved warm from the given parameters at the actual grasp state within that many IPOPT iterations
+        (:meth:`resolved_stabilization`); approach and tracking are the same as without.
         """
         t_start = time.perf_counter()
         app, motion = ApproachSolution.given(given.approach), self.motion(state)
@@ -184,10 +187,28 @@ class Planner:
             params = candidate.smooth_stop_params()
         # given parameters need no NLP: a query that only simulates and verifies never builds one
         stab = StabilizationSolution.given(np.asarray(params, dtype=float))
-        plan = self.assemble(state, candidate, stab, {"approach_s": 0.0, "stabilization_s": 0.0},
-                             ["simulated from given parameters"])
+        notes = ["simulated from given parameters"]
+        t_stab = time.perf_counter()
+        if resolve_iterations is not None:
+            stab, note = self.resolved_stabilization(candidate, stab.params, resolve_iterations)
+            notes.append(note)
+        timings = {"approach_s": 0.0, "stabilization_s": time.perf_counter() - t_stab}
+        plan = self.assemble(state, candidate, stab, timings, notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
+
+    def resolved_stabilization(self, candidate: GraspCandidate, planned: Array,
+                               max_iterations: int) -> tuple[StabilizationSolution, str]:
+        """The stabilization NLP solved warm from ``planned`` at ``candidate``'s grasp within ``max_iterations``, and
+        a note: its answer when the solve succeeds, else the ``planned`` spline (the flight software flies what it
+        has; such a solution keeps the failed solve's status and iterations, with ``success`` False)."""
+        solved = candidate.stabilize(planned, max_iterations)
+        if solved.success:
+            return solved, f"stabilization re-solved warm at the grasp ({solved.iterations} iterations)"
+        kept = replace(StabilizationSolution.given(planned), success=False, status=solved.status,
+                       iterations=solved.iterations, solve_time_s=solved.solve_time_s)
+        return kept, (f"the warm re-solve of the stabilization failed ({solved.status} after {solved.iterations} "
+                      "iterations): the planned spline is flown")
 
     def motion(self, state: TargetState) -> TargetMotion:
         """The target's motion from the observed ``state`` to past the latest stabilization end."""

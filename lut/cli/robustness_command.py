@@ -48,25 +48,30 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
               help="Write success_vs_scale.png and worst_run_distance.png to DIR.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None,
               help="Write the figures as lutgen.robustness/1 JSON here.")
+@click.option("--resolve-stabilization", is_flag=True,
+              help="In each run, solve the stabilization NLP warm from the plan's spline at the run's grasp state "
+                   "(as the flight software would once grasped), within the planner's stabilization budget of IPOPT "
+                   "iterations; where it fails, the planned spline is flown.")
 @click.option("--no-progress", is_flag=True, help="No progress bar on stderr.")
 @user_errors
 def robustness(plan_path: str, attitude_sigma_deg: float, rate_sigma_deg_s: float, covariance_path: str | None,
                samples: int, scales: str, sweep_samples: int, seed: int, step_s: float, jobs: int,
                min_success: float | None, scenario_path: str | None, plot_dir: str | None, json_path: str | None,
-               no_progress: bool) -> None:
+               resolve_stabilization: bool, no_progress: bool) -> None:
     """Execute the plan PLAN_PATH against true target states drawn around its observed state, verify every
     run densely, and report the success probability (Wilson 95 % interval), which check fails first and how
     often, and the largest error scale at which at least 95 % of runs succeed.
 
     A run flies the approach as planned, the tracking IK closes on the true target's grasp frame and the
-    stabilization spline is applied from the grasp state reached. Exit 0: report produced (and, with
-    --min-success, go); 2: no-go; 1: bad input.
+    stabilization spline is applied from the grasp state reached (or, with --resolve-stabilization, re-solved
+    warm there). Exit 0: report produced (and, with --min-success, go); 2: no-go; 1: bad input.
     """
     from lut.output.paths import Output, check_outputs
     from lut.output.plan_file import load_plan
     from lut.output.plan_replay import replay_inputs, resolve_scenario
     from lut.robustness.analysis import RobustnessRequest
     from lut.robustness.sweep import parse_scales
+    from planner.plan_grasps import STABILIZATION_BUDGET
 
     model = _error_model(attitude_sigma_deg, rate_sigma_deg_s, covariance_path)
     _check_counts(samples, sweep_samples, jobs, step_s, min_success)
@@ -76,7 +81,8 @@ def robustness(plan_path: str, attitude_sigma_deg: float, rate_sigma_deg_s: floa
     if json_path is not None:  # before hours of runs: never over an input, never into a missing folder
         check_outputs([plan_path, scenario.source], [Output("--json", Path(json_path))])
     request = RobustnessRequest(scenario.source, inputs.state, inputs.parameters, model, samples, seed,
-                                tuple(parse_scales(scales)), sweep_samples, step_s, jobs)
+                                tuple(parse_scales(scales)), sweep_samples, step_s, jobs,
+                                STABILIZATION_BUDGET if resolve_stabilization else None)
     report = _run_with_progress(request, no_progress)
     for line in report.lines():
         click.echo(line)

@@ -6,8 +6,9 @@ one, before the previous approach begins (``since_s`` < its start delay). The ne
 new observation. First the previous plan itself, its start delay less ``since_s``, is re-simulated at the
 new state and verified: if it is feasible it is the answer (the maneuver does not change at all). Otherwise
 a solve warm-started from it, with the approach NLP's base offset θ_b(0) pinned at the previous plan's
-(:mod:`lut.query.pinned_solve`), runs in a child process killed at the budget; its plan is re-simulated and
-verified like a query's refine, and replaces the shifted one if it is feasible.
+(:mod:`lut.query.pinned_solve`), runs in a child process like a query's refine: its plan ends at the budget (less
+the time to verify it there) and the process is killed at it; the plan is re-simulated and verified here, and
+replaces the shifted one if it is feasible. With less than :data:`MIN_SOLVE_S` left no solve starts.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ if TYPE_CHECKING:
 
 FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export the new plan [s]
 BASE_PIN_TOL_M = 1e-9  # the new base offset must be the previous one (pinned bounds) [m]
+MIN_SOLVE_S = 5.0  # a re-solve with less time than this cannot finish a solve: not started [s]
 
 
 @dataclass(frozen=True)
@@ -57,16 +59,21 @@ def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, sin
         raise LutgenError(f"--since-s: the new estimate must come after the previous one and before its approach "
                           f"starts at {tau:.3f} s, got {since_s}")
     t0 = time.perf_counter()
-    if budget_s - FINISH_RESERVE_S < 5.0:
-        raise LutgenError(f"--budget-s: a re-plan needs at least {FINISH_RESERVE_S + 5.0:g} s, got {budget_s:g}")
+    if budget_s - FINISH_RESERVE_S < MIN_SOLVE_S:
+        raise LutgenError(f"--budget-s: a re-plan needs at least {FINISH_RESERVE_S + MIN_SOLVE_S:g} s, "
+                          f"got {budget_s:g}")
     planner = Planner(scenario)
     shifted = planner.simulate(state, previous.with_start_delay(tau - since_s))
     shifted_report = verify(shifted)
     if shifted_report.feasible:
         return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan")
     room = budget_s - FINISH_RESERVE_S - (time.perf_counter() - t0)
-    solved = run_point(PINNED_SOLVER, str(scenario.source), -1, state, previous, -since_s, timeout_s=max(room, 1.0),
-                       max_wall_s=max(1.0, room / 4), timeout_name="--budget-s")
+    if room < MIN_SOLVE_S:
+        return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
+                      f"no time left to re-solve within --budget-s {budget_s:g} s")
+    # as a query's refine: each NLP gets at most half the time, the plan ends before the kill with its best, verified
+    solved = run_point(PINNED_SOLVER, str(scenario.source), -1, state, previous, -since_s, timeout_s=room,
+                       max_wall_s=max(1.0, room / 2), plan_budget_s=room, timeout_name="--budget-s")
     if solved.status not in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) or solved.parameters is None:
         return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
                       solved.failure_reason or solved.status.value)

@@ -83,9 +83,11 @@ def candidate_lines(choice: RobustChoice) -> list[str]:
     return lines
 
 
-def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, budget_s: float) -> RobustChoice:
+def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, budget_s: float,
+                 refine: bool = True) -> RobustChoice:
     """The module docstring's choice for ``state``: the plain query within ``budget_s`` [s] first (always judged),
-    then the other candidates while what is left of the budget covers the dearest judgement so far."""
+    then the other candidates while what is left of the budget covers the dearest judgement so far; ``refine``
+    False leaves out the warm-started solve (the table's own candidates only)."""
     t0 = time.perf_counter()
     register_planner(str(tq.scenario_path), tq.planner)
     states = perturbed_states(state, request.model, standard_draws(request.samples, request.seed), 1.0)
@@ -105,7 +107,7 @@ def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, bud
                              *tq.simulate_and_verify(state, c.parameters, {}), request))
         cost_s = max(cost_s, time.perf_counter() - c0)
     found, failure = tq.interpolate(state), ""
-    if found is not None and plain.source not in (QuerySource.REFINED, QuerySource.SOLVED_COLD) \
+    if refine and found is not None and plain.source not in (QuerySource.REFINED, QuerySource.SOLVED_COLD) \
             and time_left() - cost_s >= MIN_REFINE_S:
         refined = tq.refine(state, found.parameters, time_left() - cost_s)
         if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
@@ -113,9 +115,14 @@ def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, bud
                                  *tq.simulate_and_verify(state, refined.parameters, {}), request))
         else:
             failure = refined.failure_reason or refined.status.value
+    return RobustChoice(most_robust(judged), judged, plain.corners_used, time.perf_counter() - t0, failure)
+
+
+def most_robust(judged: list[RobustCandidate]) -> RobustCandidate:
+    """The judged candidate with the highest success probability, the earliest of a tie (the plain answer, first,
+    is replaced only by a strictly more robust plan); the plain answer when none was feasible as observed."""
     feasible = [c for c in judged if c.estimate is not None]
-    chosen = max(feasible, key=lambda c: c.estimate.probability if c.estimate else -1.0, default=judged[0])
-    return RobustChoice(chosen, judged, plain.corners_used, time.perf_counter() - t0, failure)
+    return max(feasible, key=lambda c: c.estimate.probability if c.estimate else -1.0, default=judged[0])
 
 
 def _judge(tq: TableQuery, states: list[TargetState], label: str, source: QuerySource, plan: GraspPlan,

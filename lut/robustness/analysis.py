@@ -14,7 +14,7 @@ import numpy as np
 
 from lut.robustness.error_model import ErrorModel, perturbed_states, standard_draws
 from lut.robustness.execution import BatchCost, RunOutcome, run_states
-from lut.robustness.report import RobustnessReport, RunCost, RunRecord, WorstRun
+from lut.robustness.report import RobustnessReport, RunCost, RunRecord, StabilizationMode, WorstRun
 from lut.robustness.statistics import failure_tally, success_estimate
 from lut.robustness.sweep import ScalePoint, largest_scale
 from planner.model.target_state import TargetState
@@ -35,6 +35,7 @@ class RobustnessRequest:
     sweep_samples: int  # runs per sweep scale other than 1
     step_s: float  # verify's step [s]
     jobs: int
+    resolve_iterations: int | None = None  # the stabilization re-solved warm within this many iterations (None: not)
 
 
 def analyse(request: RobustnessRequest, on_done: Callable[[int], None] | None = None) -> RobustnessReport:
@@ -47,7 +48,7 @@ def analyse(request: RobustnessRequest, on_done: Callable[[int], None] | None = 
         states = perturbed_states(request.state, request.model, z[:n], scale)
         main_states = states if scale == 1.0 else main_states
         batches[scale] = run_states(request.scenario_path, request.parameters, states, request.step_s,
-                                    request.jobs, on_done)
+                                    request.jobs, on_done, request.resolve_iterations)
     main, main_cost = batches[1.0]
     sweep = [ScalePoint(scale, success_estimate(outcomes)) for scale, (outcomes, _) in batches.items()]
     executed = [o for outcomes, _ in batches.values() for o in outcomes]
@@ -60,7 +61,17 @@ def analyse(request: RobustnessRequest, on_done: Callable[[int], None] | None = 
     runs = [RunRecord(tuple(map(float, s.attitude_wxyz)), tuple(map(float, s.omega_body_rad_s)), o.feasible, o.failed,
                       o.margins) for s, o in zip(main_states, main, strict=True)]
     return RobustnessReport(request.model, request.samples, request.seed, request.step_s, success_estimate(main),
-                            failure_tally(main), sweep, largest_scale(sweep), worst_run(main), cost, runs)
+                            failure_tally(main), sweep, largest_scale(sweep), worst_run(main), cost, runs,
+                            stabilization_mode(request.resolve_iterations, main))
+
+
+def stabilization_mode(resolve_iterations: int | None, outcomes: list[RunOutcome]) -> StabilizationMode:
+    """How ``outcomes`` (of scale 1) flew the stabilization, with the re-solves' iteration counts."""
+    if resolve_iterations is None:
+        return StabilizationMode(None)
+    iterations = [o.resolve_iterations for o in outcomes if o.error == ""] or [0]
+    return StabilizationMode(resolve_iterations, sum(o.resolved for o in outcomes), float(np.mean(iterations)),
+                             int(max(iterations)))
 
 
 def worst_run(outcomes: list[RunOutcome]) -> WorstRun | None:

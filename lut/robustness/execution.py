@@ -2,7 +2,9 @@
 
 A run is :meth:`planner.plan.Planner.simulate` at the true state with the plan's parameters (approach as
 planned, tracking IK closing on the true grasp frame, stabilization spline applied from the actual grasp
-state), then the full :func:`planner.verify.verifier.verify` of that run. Each worker process loads the
+state, or, with ``resolve_iterations``, the stabilization NLP solved warm from the plan's spline at that grasp
+state within that many iterations, its answer flown if the solve succeeds), then the full
+:func:`planner.verify.verifier.verify` of that run. Each worker process loads the
 scenario and builds its :class:`~planner.plan.Planner` once (seconds) and keeps it for every later chunk;
 a worker is sent the scenario's path, never objects. Identical states (every run at error scale 0) are
 executed once and their outcome shared.
@@ -42,6 +44,8 @@ class RunOutcome:
     simulate_s: float  # wall time of the re-simulation [s]
     verify_s: float  # wall time of verify [s]
     error: str = ""  # why the run could not be made (empty when it was)
+    resolved: bool = False  # the stabilization flown is a successful warm re-solve (not the planned spline)
+    resolve_iterations: int = 0  # IPOPT iterations of the warm re-solve (0: none made)
 
     @property
     def first_failed(self) -> str:
@@ -64,13 +68,16 @@ def register_planner(scenario_path: str, planner: Planner) -> None:
     _PLANNERS[scenario_path] = planner
 
 
-def run_one(planner: Planner, state: TargetState, parameters: PlanParameters, step_s: float) -> RunOutcome:
-    """Execute ``parameters`` against ``state`` with ``planner`` and verify the run at ``step_s`` [s]."""
+def run_one(planner: Planner, state: TargetState, parameters: PlanParameters, step_s: float,
+            resolve_iterations: int | None = None) -> RunOutcome:
+    """Execute ``parameters`` against ``state`` with ``planner`` (the stabilization re-solved warm within
+    ``resolve_iterations`` when given) and verify the run at ``step_s`` [s]."""
+    from planner.nlp.outcome import SolveOutcome
     from planner.verify.verifier import verify
 
     t0 = time.perf_counter()
     try:
-        plan = planner.simulate(state, parameters)
+        plan = planner.simulate(state, parameters, resolve_iterations)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:
         return RunOutcome(False, ("execution",), {}, np.zeros(0), np.zeros(0), time.perf_counter() - t0, 0.0,
                           str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
@@ -82,16 +89,18 @@ def run_one(planner: Planner, state: TargetState, parameters: PlanParameters, st
     return RunOutcome(bool(report.feasible), tuple(c.name for c in failed),
                       {name: float(c.margin) for name, c in report.checks.items()},
                       np.asarray(report.t, dtype=float), np.asarray(report.min_distance_m, dtype=float),
-                      t1 - t0, t2 - t1)
+                      t1 - t0, t2 - t1, resolved=plan.stabilization.success and plan.stabilization.status
+                      != SolveOutcome.GIVEN, resolve_iterations=plan.stabilization.iterations)
 
 
-def run_chunk(scenario_path: str, parameters: PlanParameters, states: Sequence[TargetState],
-              step_s: float) -> tuple[list[RunOutcome], float]:
-    """Runs of one chunk in this worker, and the Planner build time it paid (0 when already built) [s]."""
+def run_chunk(scenario_path: str, parameters: PlanParameters, states: Sequence[TargetState], step_s: float,
+              resolve_iterations: int | None = None) -> tuple[list[RunOutcome], float]:
+    """Runs of one chunk in this worker, and the Planner build time it paid (0 when already built) [s]; the
+    stabilization NLP of a re-solving run is built once per worker too (the Planner keeps it)."""
     t0 = time.perf_counter()
     planner = planner_for(scenario_path)
     build_s = time.perf_counter() - t0
-    return [run_one(planner, s, parameters, step_s) for s in states], build_s
+    return [run_one(planner, s, parameters, step_s, resolve_iterations) for s in states], build_s
 
 
 def _state_key(state: TargetState) -> bytes:
@@ -109,9 +118,10 @@ class BatchCost:
 
 
 def run_states(scenario_path: str, parameters: PlanParameters, states: Sequence[TargetState], step_s: float,
-               jobs: int, on_done: Callable[[int], None] | None = None) -> tuple[list[RunOutcome], BatchCost]:
+               jobs: int, on_done: Callable[[int], None] | None = None,
+               resolve_iterations: int | None = None) -> tuple[list[RunOutcome], BatchCost]:
     """Every state's outcome, in order; ``jobs`` worker processes (1: in this process); ``on_done(k)`` after each
-    chunk with the number of runs it finished."""
+    chunk with the number of runs it finished; ``resolve_iterations``: :func:`run_one`'s."""
     t0 = time.perf_counter()
     unique: dict[bytes, int] = {}
     for s in states:
@@ -122,7 +132,7 @@ def run_states(scenario_path: str, parameters: PlanParameters, states: Sequence[
     chunks = [(a, distinct[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
     results: list[RunOutcome] = [RunOutcome(False, (), {}, np.zeros(0), np.zeros(0), 0.0, 0.0)] * len(distinct)
     build_s = 0.0
-    for start, (outcomes, built) in _map_chunks(scenario_path, parameters, chunks, step_s, jobs):
+    for start, (outcomes, built) in _map_chunks(scenario_path, parameters, chunks, step_s, jobs, resolve_iterations):
         results[start:start + len(outcomes)] = outcomes
         build_s += built
         if on_done is not None:
@@ -132,19 +142,21 @@ def run_states(scenario_path: str, parameters: PlanParameters, states: Sequence[
 
 
 def _map_chunks(scenario_path: str, parameters: PlanParameters, chunks: list[tuple[int, list[TargetState]]],
-                step_s: float, jobs: int) -> Iterator[tuple[int, tuple[list[RunOutcome], float]]]:
+                step_s: float, jobs: int,
+                resolve_iterations: int | None) -> Iterator[tuple[int, tuple[list[RunOutcome], float]]]:
     """``run_chunk`` over the chunks: in this process for one job, else joblib's loky workers, as they finish."""
     if jobs <= 1:
         for start, chunk in chunks:
-            yield start, run_chunk(scenario_path, parameters, chunk, step_s)
+            yield start, run_chunk(scenario_path, parameters, chunk, step_s, resolve_iterations)
         return
     import joblib
 
-    tasks = (joblib.delayed(_indexed_chunk)(start, scenario_path, parameters, chunk, step_s) for start, chunk in chunks)
+    tasks = (joblib.delayed(_indexed_chunk)(start, scenario_path, parameters, chunk, step_s, resolve_iterations)
+             for start, chunk in chunks)
     yield from joblib.Parallel(n_jobs=jobs, backend="loky", return_as="generator_unordered")(tasks)
 
 
 def _indexed_chunk(start: int, scenario_path: str, parameters: PlanParameters, states: Sequence[TargetState],
-                   step_s: float) -> tuple[int, tuple[list[RunOutcome], float]]:
+                   step_s: float, resolve_iterations: int | None) -> tuple[int, tuple[list[RunOutcome], float]]:
     """:func:`run_chunk` tagged with the chunk's first index (unordered results find their place)."""
-    return start, run_chunk(scenario_path, parameters, states, step_s)
+    return start, run_chunk(scenario_path, parameters, states, step_s, resolve_iterations)

@@ -1,5 +1,5 @@
 """A robustness analysis' figures: success probability and interval, failure tally, sweep, worst run, cost;
-as printed lines and as the ``lutgen.robustness/1`` JSON document."""
+as printed lines and as the ``lutgen.robustness/1`` JSON document (with how the runs flew the stabilization)."""
 
 from __future__ import annotations
 
@@ -53,6 +53,32 @@ class RunCost:
 
 
 @dataclass(frozen=True)
+class StabilizationMode:
+    """How the runs flew the stabilization: the plan's spline as it is (``resolve_iterations`` None), or its NLP
+    re-solved warm at each run's grasp within ``resolve_iterations`` IPOPT iterations (the planned spline flown where
+    the solve failed); the re-solves' outcome at scale 1."""
+
+    resolve_iterations: int | None
+    resolved_runs: int = 0  # runs of scale 1 that flew a successful re-solve
+    iterations_mean: float = 0.0  # of the re-solves at scale 1
+    iterations_max: int = 0
+
+    def line(self, runs: int) -> str:
+        """The report's line on it (``runs``: of scale 1)."""
+        if self.resolve_iterations is None:
+            return "stabilization as planned: the plan's spline from each run's grasp state"
+        return (f"stabilization re-solved warm at each run's grasp (≤ {self.resolve_iterations} IPOPT iterations): "
+                f"solved in {self.resolved_runs}/{runs} runs (the others fly the planned spline), iterations mean "
+                f"{self.iterations_mean:.1f}, max {self.iterations_max}")
+
+    def document(self) -> dict[str, Any]:
+        """Its JSON object."""
+        return {"mode": "as_planned" if self.resolve_iterations is None else "resolved_warm",
+                "max_iterations": self.resolve_iterations, "resolved_runs": self.resolved_runs,
+                "iterations_mean": self.iterations_mean, "iterations_max": self.iterations_max}
+
+
+@dataclass(frozen=True)
 class RobustnessReport:
     """Everything ``lutgen robustness`` reports (module docstring)."""
 
@@ -67,6 +93,7 @@ class RobustnessReport:
     worst: WorstRun | None
     cost: RunCost
     runs: list[RunRecord]  # scale 1, in draw order
+    stabilization: StabilizationMode
 
     def lines(self) -> list[str]:
         """The printed report."""
@@ -74,6 +101,7 @@ class RobustnessReport:
         sig = self.model.sigmas()
         out = [f"error model  1-σ attitude {np.degrees(sig[:3]).round(4).tolist()} deg (body axes), "
                f"rate {np.degrees(sig[3:]).round(5).tolist()} deg/s; {self.samples} samples, seed {self.seed}",
+               self.stabilization.line(self.samples),
                f"success      {s.successes}/{s.runs} = {s.probability:.3f}, {CONFIDENCE:.0%} Wilson interval "
                f"[{s.low:.3f}, {s.high:.3f}]"]
         for t in self.tally:
@@ -114,6 +142,7 @@ class RobustnessReport:
                             "sigma_rate_rad_s": self.model.sigmas()[3:].tolist(),
                             "frame": "target body; attitude error is a rotation vector composed on the right"},
             "samples": self.samples, "seed": self.seed, "verify_step_s": self.step_s,
+            "stabilization": self.stabilization.document(),
             "success": estimate(self.success),
             "failures": [{"check": t.check, "first": t.first, "failed": t.failed} for t in self.tally],
             "sweep": [{"scale": p.scale, **estimate(p.estimate)} for p in self.sweep],

@@ -72,10 +72,10 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
         period = 2 * np.pi / rate if rate > 0 else None
         warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.max_start_delay_s)
     t0 = time.perf_counter()
-    deadline = NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
-    result = _verified_plan(planner, point, state, warm_start, deadline)
+    deadline = plan_deadline(deadline_at_s)
+    result = verified_plan(planner, point, state, warm_start, deadline)
     if cold_fallback and warm_start is not None and result.status is not PointStatus.FEASIBLE and not deadline.passed:
-        cold = _verified_plan(planner, point, state, None, deadline)
+        cold = verified_plan(planner, point, state, None, deadline)
         kept = cold if cold.status is PointStatus.FEASIBLE else result  # else the neighbour's family's verdict
         result = replace(kept, iterations=result.iterations + cold.iterations)
     result = replace(result, solve_time_s=time.perf_counter() - t0)
@@ -88,8 +88,14 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     return to_record(result)
 
 
-def _verified_plan(planner: Planner, point: int, state: TargetState, warm_start: PlanParameters | None,
-                   deadline: Deadline) -> PointResult:
+def plan_deadline(deadline_at_s: float | None) -> Deadline:
+    """A solver's plan deadline: ``deadline_at_s`` (a ``time.monotonic()`` instant; None: none) less
+    :data:`VERIFY_RESERVE_S` to verify the plan and write the record before the process is killed."""
+    return NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
+
+
+def verified_plan(planner: Planner, point: int, state: TargetState, warm_start: PlanParameters | None,
+                  deadline: Deadline) -> PointResult:
     """The plan of ``state`` (warm from ``warm_start``, cold without) verified, as the point's result; a cold plan
     proved out of reach is an infeasible result without parameters."""
     from planner.plan import OutOfReach

@@ -13,6 +13,8 @@ from tests.support.cli import ROOT, assert_one_line_error, lutgen_in_process, wr
 
 SIGMAS = "0.05,0.005"  # 1-σ attitude (deg) and rate (deg/s): a tenth of the issue's, where the golden plans' runs
 # sit at the edge of their grasp-torque margin
+EDGE = [3.5, 90.0, 10.0]  # between two grid nodes of one rate: both nodes' plans, carried there, are feasible
+EDGE_SCALE = 0.02  # of the issue's σ's (0.01°, 0.001 °/s): where the candidates' grasp-torque margins part
 
 
 @pytest.fixture(scope="module")
@@ -41,20 +43,53 @@ def test_robust_query_with_no_time_left_judges_the_plain_answer(golden, tmp_path
     assert a == b
 
 
+def test_the_choice_is_the_most_robust_candidate_by_an_independent_count(golden):
+    from lut.query.robust_choice import RobustRequest, robust_query
+    from lut.query.table_query import TableQuery
+    from lut.robustness.error_model import ErrorModel
+    from planner.verify.verifier import verify
+    from tests.lut.robustness.test_robustness_command import (
+        SIGMA_ATT_DEG,
+        SIGMA_RATE_DEG_S,
+        independent_true_states,
+    )
+
+    tq = TableQuery(golden)
+    state = tq.grid.state_at(EDGE)
+    model = ErrorModel.from_sigmas(np.radians(SIGMA_ATT_DEG * EDGE_SCALE), np.radians(SIGMA_RATE_DEG_S * EDGE_SCALE))
+    choice = robust_query(tq, state, RobustRequest(model, samples=2, seed=0, jobs=1), budget_s=600.0, refine=False)
+    judged = [c for c in choice.candidates if c.estimate is not None]
+    assert [c.label for c in judged] == ["plain interpolated", "corner 0", "corner 1"], candidate_text(choice)
+    target = {"target": {"attitude_wxyz": state.attitude_wxyz, "omega_body_rad_s": state.omega_body_rad_s}}
+    draws = independent_true_states(target, 2, 0, EDGE_SCALE)
+    # each judged plan flown against the same draws and verified one by one, outside robust_choice
+    truth = {c.label: sum(verify(tq.planner.simulate(s, c.plan.parameters)).feasible for s in draws) for c in judged}
+    assert len(set(truth.values())) > 1, truth  # the candidates differ: a worse choice would show
+    assert truth[choice.chosen.label] == max(truth.values()), (choice.chosen.label, truth)
+    assert all(c.estimate.successes == truth[c.label] for c in judged), candidate_text(choice)
+
+
+def candidate_text(choice) -> str:
+    from lut.query.robust_choice import candidate_lines
+
+    return "\n".join(candidate_lines(choice))
+
+
 @pytest.mark.slow
 def test_robust_plan_is_at_least_as_robust_as_the_plain_one(golden, tmp_path):
-    args = state_args(golden, [3.8, 90.0, 7.0])  # inside a cell: interpolated, and its corners as candidates
-    plain = lutgen_in_process("query", golden, *args, "--budget-s", "60", "--out", tmp_path / "plain.json")
-    robust = lutgen_in_process("query", golden, *args, "--budget-s", "120", "--robust", SIGMAS, "--robust-samples",
-                               "6", "--seed", "4", "-j", "2", "--out", tmp_path / "robust.json")
+    args = state_args(golden, EDGE)  # between two nodes: interpolated, its two corners and a refine as candidates
+    sigmas = f"{0.5 * EDGE_SCALE:g},{0.05 * EDGE_SCALE:g}"  # where the candidates part (test above)
+    plain = lutgen_in_process("query", golden, *args, "--budget-s", "120", "--out", tmp_path / "plain.json")
+    robust = lutgen_in_process("query", golden, *args, "--budget-s", "120", "--robust", sigmas, "--robust-samples",
+                               "2", "--seed", "0", "-j", "2", "--out", tmp_path / "robust.json")
     assert plain.returncode in (0, 2) and robust.returncode in (0, 2), robust.stderr
     assert "corner" in robust.stdout, robust.stdout
     success = {}
     for name in ("plain", "robust"):
         out = tmp_path / f"{name}.rob.json"
-        att, rate = SIGMAS.split(",")
+        att, rate = sigmas.split(",")
         res = lutgen_in_process("robustness", tmp_path / f"{name}.json", "--attitude-sigma-deg", att,
-                                "--rate-sigma-deg-s", rate, "--samples", "6", "--scales", "1", "--seed", "4",
+                                "--rate-sigma-deg-s", rate, "--samples", "2", "--scales", "1", "--seed", "0",
                                 "-j", "2", "--json", out, "--no-progress", "--scenario",
                                 ROOT / "configs" / "scenarios" / "scenario_II.toml")
         assert res.returncode == 0, res.stderr
