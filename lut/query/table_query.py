@@ -10,6 +10,8 @@
 4. If that is not feasible, or refinement was asked for, a warm-started solve runs in a child process
    within what is left of the time budget (killed at it); a feasible refined plan replaces the
    interpolated one. If there is still no feasible plan, a cold solve gets what is left after that.
+5. The answer carries the scenario's weighted cost terms of its plan and of each corner used
+   (:mod:`lut.query.plan_costs`), so an optimal table's query shows how far it is from its corners' optima.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lut.query.interpolation import Candidate, consistent_group, mean_of_group
+from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
@@ -63,6 +66,7 @@ class TableQuery:
         self.planner = Planner(self.scenario)
         self.points: dict[int, PointResult] = {p: from_record(self.table.record(p)) for p in range(self.table.n_points)}
         self.feasible = [p for p, r in self.points.items() if r.status is PointStatus.FEASIBLE]
+        self.scorer = CostScorer(self.scenario, self.planner.ff, self.planner.approach.spline)
         self.load_time_s = time.perf_counter() - t0
 
     # ---- lookup + interpolation ------------------------------------------------------------
@@ -147,9 +151,25 @@ class TableQuery:
         if plan is None or report is None:
             why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
             raise LutgenError(f"the table has no feasible point near this state and the solve gave no plan: {why}")
+        corners = found.corners if found is not None else []
+        costs = self.cost_breakdowns(plan, report, corners)
         latency["total_s"] = time.perf_counter() - t_start
-        return QueryResult(plan, report, source, found.corners if found is not None else [], latency, refine_failure,
-                           found.notes if found is not None else ())
+        return QueryResult(plan, report, source, corners, latency, refine_failure,
+                           found.notes if found is not None else (), costs)
+
+    def cost_breakdowns(self, plan: GraspPlan, report: VerifyReport,
+                        corners: list[int]) -> tuple[CostBreakdown, ...]:
+        """The plan's weighted cost terms, then each corner's from its stored parameters and verified clearance
+        (a table without ``costs/min_distance_m`` scores that term NaN); ``()`` for a feasibility-only scenario."""
+        if self.scorer.feasibility_only:
+            return ()
+        rows = [self.scorer.score("plan", plan.approach.parameters, float(np.min(report.min_distance_m)))]
+        for corner in corners:
+            point = self.points[corner]
+            if point.parameters is not None:
+                rows.append(self.scorer.score(f"corner {corner}", point.parameters.approach,
+                                              point.costs.get("min_distance_m", float("nan"))))
+        return tuple(rows)
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:
