@@ -46,6 +46,10 @@ from planner.verify.verifier import VerifyReport, verify
 PERIOD_FREE = float("inf")  # the spin period of a target that does not spin [s]
 FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]
 MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
+# share of the time left that a warm refine of an infeasible interpolated plan gets when a cold solve follows:
+# a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
+# plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
+WARM_SHARE = 0.5
 
 
 class TableQuery:
@@ -117,7 +121,8 @@ class TableQuery:
 
         The refine runs in a child process whose plan ends at the budget less :data:`FINISH_RESERVE_S` (to
         re-simulate and verify its answer here) and which is killed there, so a query never overruns, whatever
-        the solver does.
+        the solver does. A warm refine that is not asked for gets :data:`WARM_SHARE` of the time left, so that
+        the cold solve after it (if it gives no feasible plan) still has the rest.
         """
         t_start = time.perf_counter()
         deadline = Deadline.after(budget_s, since_s)
@@ -134,12 +139,13 @@ class TableQuery:
         if found is not None:
             attempts.insert(0, (found.parameters, QuerySource.REFINED))
         refine_failure = ""
-        for warm, label in attempts:
+        for i, (warm, label) in enumerate(attempts):
             remaining = deadline.remaining_s() - FINISH_RESERVE_S
             if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
                 break
+            share = WARM_SHARE if i + 1 < len(attempts) and not refine else 1.0  # the cold solve keeps the rest
             t0 = time.perf_counter()
-            refined = self.refine(state, warm, remaining)
+            refined = self.refine(state, warm, max(MIN_REFINE_S, share * remaining))
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
                 new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})

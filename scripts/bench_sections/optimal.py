@@ -4,13 +4,14 @@ optimum at the same state (one cold ``lutgen plan`` process each); the cost gap,
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bench_sections.common import Settings, relative, skipped, stats_p95, table_query
+from bench_sections.common import Settings, json_safe, relative, skipped, stats_p95, table_query
 from bench_sections.coverage_runs import last_line, reproduction, run_cli, state_args
 from bench_sections.envelope import EnvelopeState
 
@@ -147,6 +148,7 @@ def optimal(settings: Settings) -> dict[str, Any]:
         runs.append({"state": i, "attitude_wxyz": list(state.attitude_wxyz),
                      "omega_body_deg_s": list(np.degrees(state.omega_body_rad_s)), "query": query,
                      "optimum": optimum, "gap": cost_gap(query, optimum)})
-        print(f"bench: optimal state {i + 1}/{o.states}: query {query['source']} {query['latency_s']:.1f} s, "
-              f"optimum {optimum['wall_s']:.0f} s, gap {runs[-1]['gap']}", file=sys.stderr, flush=True)
+        # one JSON line per state: a long run stopped early keeps what it measured (summary() re-reads them)
+        print(f"bench: optimal state {i + 1}/{o.states}: {json.dumps(json_safe(runs[-1]))}", file=sys.stderr,
+              flush=True)
     return head | summary(runs)
