@@ -7,10 +7,12 @@
    (:mod:`lut.query.interpolation`). Without a feasible corner the nearest feasible point of the table is used.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
    actual grasp state) and verified densely.
-4. If that is not feasible, or refinement was asked for, a warm-started solve runs in a child process
+4. If the interpolated plan is not feasible, the heaviest corners' own plans (carried to the state's phase) are
+   re-simulated and verified the same way, and the first feasible one is the answer (source ``corner``).
+5. If that is not feasible either, or refinement was asked for, a warm-started solve runs in a child process
    within what is left of the time budget (killed at it); a feasible refined plan replaces the
    interpolated one. If there is still no feasible plan, a cold solve gets what is left after that.
-5. The answer carries the scenario's weighted cost terms of its plan and of each corner used
+6. The answer carries the scenario's weighted cost terms of its plan and of each corner used
    (:mod:`lut.query.plan_costs`), so an optimal table's query shows how far it is from its corners' optima.
 """
 
@@ -50,6 +52,9 @@ MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: n
 # a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
 # plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
 WARM_SHARE = 0.5
+# corners whose own plans are tried (heaviest first) when the interpolated plan fails verification, before any
+# solve: each costs one re-simulation and verification (seconds), a refine tens of seconds (README "Optimal tables")
+CORNER_TRIES = 2
 
 
 class TableQuery:
@@ -131,9 +136,16 @@ class TableQuery:
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
         plan = report = None
         source = QuerySource.SOLVED_COLD
+        corners = found.corners if found is not None else []
         if found is not None:
             plan, report = self.simulate_and_verify(state, found.parameters, latency)
             source = found.source
+            if not report.feasible and found.source is QuerySource.INTERPOLATED and not refine:
+                t0 = time.perf_counter()
+                own = self.corner_plan(state, deadline)
+                latency["corners_s"] = time.perf_counter() - t0
+                if own is not None:
+                    plan, report, corners, source = *own[:2], [own[2]], QuerySource.CORNER
         # warm from the table's answer first, then cold (with its retries over grasps) in what the budget has left
         attempts = [(None, QuerySource.SOLVED_COLD)]
         if found is not None:
@@ -157,7 +169,6 @@ class TableQuery:
         if plan is None or report is None:
             why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
             raise LutgenError(f"the table has no feasible point near this state and the solve gave no plan: {why}")
-        corners = found.corners if found is not None else []
         costs = self.cost_breakdowns(plan, report, corners)
         latency["total_s"] = time.perf_counter() - t_start
         return QueryResult(plan, report, source, corners, latency, refine_failure,
@@ -176,6 +187,21 @@ class TableQuery:
                 rows.append(self.scorer.score(f"corner {corner}", point.parameters.approach,
                                               point.costs.get("min_distance_m", float("nan"))))
         return tuple(rows)
+
+    def corner_plan(self, state: TargetState, deadline: Deadline) -> tuple[GraspPlan, VerifyReport, int] | None:
+        """The first of the cell's :data:`CORNER_TRIES` heaviest feasible corners whose own plan, carried to
+        ``state``'s phase, verifies feasible there: ``(plan, report, corner)``; ``None`` if none does in time.
+
+        Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
+        in different families of solutions may collide or miss the grasp.
+        """
+        for candidate in sorted(self.corner_candidates(state), key=lambda c: -c.weight)[:CORNER_TRIES]:
+            if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
+                return None
+            plan, report = self.simulate_and_verify(state, candidate.parameters, {})
+            if report.feasible:
+                return plan, report, candidate.corner
+        return None
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:
