@@ -30,7 +30,7 @@ LATENCY_P95_BAR_S = 10.0  # issue 21: query p95 latency
 QUERY_BUDGET_BAR_S = 100.0  # issue 21: every query answers with a feasible plan inside 100 s
 BAR_STATES = 30  # the issue measures its bars on ≥ 30 states
 KILL_MARGIN_S = 30.0  # an offline optimum still running this long past its budget is killed
-WITHOUT_RESOLVE = ("interpolated", "nearest")  # sources that are the table's plan, re-simulated, no solve
+WITHOUT_RESOLVE = ("interpolated", "corner", "nearest")  # sources that are the table's plans re-simulated, no solve
 SUMMARY_KEYS = ("states", "fraction_feasible", "fraction_feasible_without_resolve", "latency_s", "cost_gap",
                 "optimum_wall_s", "bars", "runs")
 
