@@ -12,7 +12,8 @@ Writes JSON (``--out``, default ``out/bench.json``) and prints a digest table. T
 ``{"median", "min", "max", "runs"}`` (plus ``"p95"`` for query latencies) in the unit the key names
 (``_us`` µs, ``_ms`` ms, ``_s`` s). A part a mode does not measure keeps its keys, with null values and
 ``"skipped": reason``. Sections (one module each in ``scripts/bench_sections/``): ``machine``,
-``primitives``, ``query``, ``build``, ``planner``, ``baseline``, ``coverage``, ``reach``. Seeds are fixed (``--seed``).
+``primitives``, ``query``, ``build``, ``planner``, ``baseline``, ``coverage``, ``optimal``, ``reach``. Seeds are
+fixed (``--seed``).
 
 The full run refines every query state whose interpolated plan fails verification, each within
 ``--refine-budget-s`` (default 100 s): with a table that interpolates poorly that adds up to 50 × the budget.
@@ -23,7 +24,11 @@ The full run refines every query state whose interpolated plan fails verificatio
 ``--coverage-tables`` (default ``tables/``): up to 2 × 80 runs of up to 100 s, hours on one core.
 Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``.
 
-``reach`` (issue 20) scans the same seeded states' meeting times only (seconds a state): how many no meeting time
+``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
+``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget, one process
+at a time: about a minute per state on one core. Alone: ``scripts/bench.py --only optimal --optimal-states 10``.
+
+``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many no meeting time
 brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a longer window.
 """
 
@@ -35,14 +40,16 @@ import sys
 import time
 import traceback
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from bench_sections.baseline import baseline
 from bench_sections.builds import builds
-from bench_sections.common import ROOT, Settings, coverage_settings, json_safe, settings_for
+from bench_sections.common import ROOT, Settings, coverage_settings, json_safe, optimal_settings, settings_for
 from bench_sections.coverage import coverage
 from bench_sections.machine import load_average, machine
+from bench_sections.optimal import optimal
 from bench_sections.plans import plans
 from bench_sections.primitives import primitives
 from bench_sections.queries import queries
@@ -52,8 +59,8 @@ from bench_sections.report import print_report
 # JSON key → section; the order they run in (the JSON lists them in the issue's order)
 SECTIONS: dict[str, Callable[[Settings], dict[str, Any]]] = {
     "primitives": primitives, "query": queries, "build": builds, "baseline": baseline, "planner": plans,
-    "coverage": coverage, "reach": reach}
-JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline", "coverage", "reach")
+    "coverage": coverage, "optimal": optimal, "reach": reach}
+JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline", "coverage", "optimal", "reach")
 
 
 def positive_int(text: str) -> int:
@@ -88,6 +95,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--coverage-tables", type=Path, default=None, metavar="DIR",
                     help="coverage: folder of the tables the queries use, matched to each kind by the scenario "
                          "and grid kind they were built for (default: tables/; --trim: tests/data)")
+    ap.add_argument("--optimal-table", type=Path, default=None, metavar="PATH",
+                    help="optimal: the table of optimal plans (default tables/flat_spin_I_energy.h5; --trim: the "
+                         "golden table, feasibility-only, so the section only says so)")
+    ap.add_argument("--optimal-states", type=positive_int, default=None, metavar="N",
+                    help="optimal: seeded off-grid states, each a query and a cold offline optimum (default 30; "
+                         "--quick 2; --trim 1)")
     ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
                     help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
                          "--out file are kept, so one part can be re-measured after a change")
@@ -138,8 +151,9 @@ def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> d
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     cov = coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables)
-    settings = settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s, args.plan_with_costs,
-                            args.refine_budget_s, cov)
+    settings = replace(settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s,
+                                    args.plan_with_costs, args.refine_budget_s, cov),
+                       optimal=optimal_settings(args.quick, args.trim, args.optimal_table, args.optimal_states))
     only = None
     if args.only is not None:
         only = tuple(name.strip() for name in args.only.split(",") if name.strip())

@@ -95,13 +95,14 @@ def _walk_skips(node: Any, where: str = "") -> None:
 
 def test_every_section_is_there_and_every_skip_says_why(run):
     bench, stdout = run
-    assert list(bench) == ["machine", "primitives", "query", "build", "planner", "baseline", "coverage", "reach",
-                           "wall_s"]
+    assert list(bench) == ["machine", "primitives", "query", "build", "planner", "baseline", "coverage", "optimal",
+                           "reach", "wall_s"]
     _walk_skips(bench)
-    for section in ("primitives", "query", "build", "planner", "baseline", "coverage", "reach"):
+    for section in ("primitives", "query", "build", "planner", "baseline", "coverage", "optimal", "reach"):
         assert _positive(bench[section]["section_wall_s"]), section
     # the readable table names every section
-    for title in ("lutgen bench", "primitives", "query", "build", "planner", "baseline", "coverage", "reach", "wrote"):
+    for title in ("lutgen bench", "primitives", "query", "build", "planner", "baseline", "coverage", "optimal",
+                  "reach", "wrote"):
         assert title in stdout, title
 
 
@@ -186,7 +187,7 @@ def test_only_reruns_the_named_section_and_keeps_the_others(run_path, tmp_path):
     proc = _bench(out, "--only", "primitives")
     assert proc.returncode == 0, proc.stderr[-4000:]
     after = json.loads(out.read_text())
-    for section in ("query", "build", "planner", "baseline", "coverage", "wall_s"):
+    for section in ("query", "build", "planner", "baseline", "coverage", "optimal", "wall_s"):
         assert after[section] == before[section], section
     assert after["machine"]["sections_rerun"] == ["primitives"]
     assert after["primitives"]["section_wall_s"] != before["primitives"]["section_wall_s"]  # measured again

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import sys
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from lut.cli.exit_codes import ExitCode
 
 if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load the planner
+    from lut.query.plan_costs import CostBreakdown, CostScorer
     from planner.plan import GraspPlan
     from planner.verify.verifier import VerifyReport
 
@@ -35,12 +36,42 @@ def plan_table(result: GraspPlan, report: VerifyReport) -> list[str]:
     return lines
 
 
-def export_and_verdict(result: GraspPlan, report: VerifyReport, out_path: str | None, csv_path: str | None) -> None:
-    """Write the plan JSON and CSV where asked, then print FEASIBLE, or the violations and exit 2."""
+def cost_table(costs: tuple[CostBreakdown, ...], scorer: CostScorer, source: str) -> list[str]:
+    """The query's plan's weighted cost terms next to its corners' (one row each), or one line saying the table
+    holds feasible plans only (every weight 0)."""
+    if scorer.feasibility_only or not costs:
+        return ["cost: none — the scenario weights no cost term (a feasibility-only table), so there is no "
+                "optimum to compare"]
+    terms = costs[0].terms
+    title = "cost (" + " ".join(f"{'−' if t.sign < 0 else '+'}{t.weight:g}·{t.name}" for t in terms) + ")"
+    labels = [f"plan ({source})" if row.label == "plan" else row.label for row in costs]
+    width = max(len(text) for text in [title, *labels]) + 2
+    lines = [f"{title:<{width}}" + "".join(f"{t.name + (f' [{t.unit}]' if t.unit else ''):>24}" for t in terms)
+             + f"{'total':>14}"]
+    for label, row in zip(labels, costs, strict=True):
+        lines.append(f"{label:<{width}}" + "".join(f"{t.value:>24.6g}" for t in row.terms) + f"{row.total:>14.6g}")
+    if scorer.unscored_weights:
+        lines.append("cost: the stabilization terms " + ", ".join(scorer.unscored_weights) + " are weighted but not "
+                     "compared here")
+    return lines
+
+
+def query_block(costs: tuple[CostBreakdown, ...], scorer: CostScorer, source: str,
+                corners: list[int]) -> dict[str, Any]:
+    """The ``query`` object a query adds to its plan file: source, corners, and the cost rows of :func:`cost_table`."""
+    return {"source": source, "corners": list(corners), "feasibility_only": scorer.feasibility_only,
+            "cost_weights": {t.name: t.weight for t in costs[0].terms} if costs else {},
+            "costs": [row.as_dict() for row in costs]}
+
+
+def export_and_verdict(result: GraspPlan, report: VerifyReport, out_path: str | None, csv_path: str | None,
+                       extra: dict[str, Any] | None = None) -> None:
+    """Write the plan JSON (with ``extra``'s top-level keys) and CSV where asked, then print FEASIBLE, or the
+    violations and exit 2."""
     from lut.output.export import plan_document, write_csv, write_json
 
     if out_path:
-        write_json(out_path, plan_document(result, report))
+        write_json(out_path, plan_document(result, report) | (extra or {}))
         click.echo(f"wrote {out_path}")
     if csv_path:
         write_csv(csv_path, result, report)

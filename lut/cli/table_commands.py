@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from lut.cli.options import check_budget, check_plan_outputs, parse_floats
-from lut.cli.plan_output import export_and_verdict, plan_table
+from lut.cli.plan_output import cost_table, export_and_verdict, plan_table, query_block
 from lut.cli.user_errors import user_errors
 from planner.errors import LutgenError
 
@@ -197,9 +197,12 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     lat = result.latency_s
     click.echo(f"source {result.source} (corners {result.corners_used}); table load {tq.load_time_s:.2f} s; "
                + ", ".join(f"{k[:-2]} {v * 1e3:.1f} ms" for k, v in lat.items()))
+    for line in cost_table(result.costs, tq.scorer, str(result.source)):
+        click.echo(line)
     if result.refine_failure:
         click.echo(f"refine did not finish: {result.refine_failure}", err=True)
-    export_and_verdict(result.plan, result.report, out_path, csv_path)
+    export_and_verdict(result.plan, result.report, out_path, csv_path,
+                       {"query": query_block(result.costs, tq.scorer, str(result.source), result.corners_used)})
 
 
 def _robust_request(sigmas: str, samples: int, seed: int, jobs: int) -> RobustRequest:

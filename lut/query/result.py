@@ -1,5 +1,5 @@
-"""What a query answers: the verified plan, where it came from, the corners it used, its latency, and why a
-refine gave nothing."""
+"""What a query answers: the verified plan, where it came from, the corners it used, its latency, why a
+refine gave nothing, and its cost terms next to those corners'."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from planner.plan_parameters import PlanParameters
 
 if TYPE_CHECKING:
+    from lut.query.plan_costs import CostBreakdown
     from planner.plan import GraspPlan
     from planner.verify.verifier import VerifyReport
 
@@ -19,6 +20,7 @@ class QuerySource(StrEnum):
 
     INTERPOLATED = "interpolated"  # the consistent corners of the enclosing cell, averaged
     NEAREST = "nearest"  # the nearest feasible grid point (no feasible corner)
+    CORNER = "corner"  # one corner's own plan carried to the state's phase (the interpolated one failed verify)
     REFINED = "refined"  # a solve warm-started from the table's answer
     SOLVED_COLD = "solved cold"  # a solve from scratch (with its retries over grasps)
 
@@ -38,7 +40,8 @@ class TableAnswer:
 
 @dataclass
 class QueryResult:
-    """A query's verified plan; ``refine_failure``: why the last refine gave no plan ("" when none failed)."""
+    """A query's verified plan; ``refine_failure``: why the last refine gave no plan ("" when none failed);
+    ``costs``: the plan's weighted cost terms first, then each used corner's (empty for a feasibility-only table)."""
 
     plan: GraspPlan
     report: VerifyReport
@@ -47,3 +50,4 @@ class QueryResult:
     latency_s: dict[str, float] = field(default_factory=dict)  # by step, e.g. "verify_s" [s]
     refine_failure: str = ""
     notes: tuple[str, ...] = ()  # how the state differs from where the table answered (off its family or grid)
+    costs: tuple[CostBreakdown, ...] = ()  # the plan's weighted cost terms, then each used corner's (none: all 0)

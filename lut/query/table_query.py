@@ -7,9 +7,13 @@
    (:mod:`lut.query.interpolation`). Without a feasible corner the nearest feasible point of the table is used.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
    actual grasp state) and verified densely.
-4. If that is not feasible, or refinement was asked for, a warm-started solve runs in a child process
+4. If the interpolated plan is not feasible, the heaviest corners' own plans (carried to the state's phase) are
+   re-simulated and verified the same way, and the first feasible one is the answer (source ``corner``).
+5. If that is not feasible either, or refinement was asked for, a warm-started solve runs in a child process
    within what is left of the time budget (killed at it); a feasible refined plan replaces the
    interpolated one. If there is still no feasible plan, a cold solve gets what is left after that.
+6. The answer carries the scenario's weighted cost terms of its plan and of each corner used
+   (:mod:`lut.query.plan_costs`), so an optimal table's query shows how far it is from its corners' optima.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lut.query.interpolation import Candidate, consistent_group, mean_of_group
+from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
@@ -43,6 +48,13 @@ from planner.verify.verifier import VerifyReport, verify
 PERIOD_FREE = float("inf")  # the spin period of a target that does not spin [s]
 FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]
 MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
+# share of the time left that a warm refine of an infeasible interpolated plan gets when a cold solve follows:
+# a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
+# plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
+WARM_SHARE = 0.5
+# corners whose own plans are tried (heaviest first) when the interpolated plan fails verification, before any
+# solve: each costs one re-simulation and verification (seconds), a refine tens of seconds (README "Optimal tables")
+CORNER_TRIES = 2
 
 
 class TableQuery:
@@ -63,6 +75,7 @@ class TableQuery:
         self.planner = Planner(self.scenario)
         self.points: dict[int, PointResult] = {p: from_record(self.table.record(p)) for p in range(self.table.n_points)}
         self.feasible = [p for p, r in self.points.items() if r.status is PointStatus.FEASIBLE]
+        self.scorer = CostScorer(self.scenario, self.planner.ff, self.planner.approach.spline)
         self.load_time_s = time.perf_counter() - t0
 
     # ---- lookup + interpolation ------------------------------------------------------------
@@ -113,7 +126,8 @@ class TableQuery:
 
         The refine runs in a child process whose plan ends at the budget less :data:`FINISH_RESERVE_S` (to
         re-simulate and verify its answer here) and which is killed there, so a query never overruns, whatever
-        the solver does.
+        the solver does. A warm refine that is not asked for gets :data:`WARM_SHARE` of the time left, so that
+        the cold solve after it (if it gives no feasible plan) still has the rest.
         """
         t_start = time.perf_counter()
         deadline = Deadline.after(budget_s, since_s)
@@ -122,20 +136,28 @@ class TableQuery:
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
         plan = report = None
         source = QuerySource.SOLVED_COLD
+        corners = found.corners if found is not None else []
         if found is not None:
             plan, report = self.simulate_and_verify(state, found.parameters, latency)
             source = found.source
+            if not report.feasible and found.source is QuerySource.INTERPOLATED and not refine:
+                t0 = time.perf_counter()
+                own = self.corner_plan(state, deadline)
+                latency["corners_s"] = time.perf_counter() - t0
+                if own is not None:
+                    plan, report, corners, source = *own[:2], [own[2]], QuerySource.CORNER
         # warm from the table's answer first, then cold (with its retries over grasps) in what the budget has left
         attempts = [(None, QuerySource.SOLVED_COLD)]
         if found is not None:
             attempts.insert(0, (found.parameters, QuerySource.REFINED))
         refine_failure = ""
-        for warm, label in attempts:
+        for i, (warm, label) in enumerate(attempts):
             remaining = deadline.remaining_s() - FINISH_RESERVE_S
             if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
                 break
+            share = WARM_SHARE if i + 1 < len(attempts) and not refine else 1.0  # the cold solve keeps the rest
             t0 = time.perf_counter()
-            refined = self.refine(state, warm, remaining)
+            refined = self.refine(state, warm, max(MIN_REFINE_S, share * remaining))
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
                 new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})
@@ -147,9 +169,39 @@ class TableQuery:
         if plan is None or report is None:
             why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
             raise LutgenError(f"the table has no feasible point near this state and the solve gave no plan: {why}")
+        costs = self.cost_breakdowns(plan, report, corners)
         latency["total_s"] = time.perf_counter() - t_start
-        return QueryResult(plan, report, source, found.corners if found is not None else [], latency, refine_failure,
-                           found.notes if found is not None else ())
+        return QueryResult(plan, report, source, corners, latency, refine_failure,
+                           found.notes if found is not None else (), costs)
+
+    def cost_breakdowns(self, plan: GraspPlan, report: VerifyReport,
+                        corners: list[int]) -> tuple[CostBreakdown, ...]:
+        """The plan's weighted cost terms, then each corner's from its stored parameters and verified clearance
+        (a table without ``costs/min_distance_m`` scores that term NaN); ``()`` for a feasibility-only scenario."""
+        if self.scorer.feasibility_only:
+            return ()
+        rows = [self.scorer.score("plan", plan.approach.parameters, float(np.min(report.min_distance_m)))]
+        for corner in corners:
+            point = self.points[corner]
+            if point.parameters is not None:
+                rows.append(self.scorer.score(f"corner {corner}", point.parameters.approach,
+                                              point.costs.get("min_distance_m", float("nan"))))
+        return tuple(rows)
+
+    def corner_plan(self, state: TargetState, deadline: Deadline) -> tuple[GraspPlan, VerifyReport, int] | None:
+        """The first of the cell's :data:`CORNER_TRIES` heaviest feasible corners whose own plan, carried to
+        ``state``'s phase, verifies feasible there: ``(plan, report, corner)``; ``None`` if none does in time.
+
+        Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
+        in different families of solutions may collide or miss the grasp.
+        """
+        for candidate in sorted(self.corner_candidates(state), key=lambda c: -c.weight)[:CORNER_TRIES]:
+            if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
+                return None
+            plan, report = self.simulate_and_verify(state, candidate.parameters, {})
+            if report.feasible:
+                return plan, report, candidate.corner
+        return None
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:

@@ -25,6 +25,7 @@ SCENARIOS = ROOT / "configs" / "scenarios"
 FAKE_SOLVER = "tests.support.fake_solver:solve"
 COVERAGE_TABLES = ROOT / "tables"  # where the README's workflow 1 builds the bundled grids' tables
 COVERAGE_BUDGET_S = 100.0  # issue 20: an operator has 100 s from observation to motion
+OPTIMAL_TABLE = ROOT / "tables" / "flat_spin_I_energy.h5"  # configs/grids/flat_spin_I_energy.toml, built by hand
 
 
 @dataclass(frozen=True)
@@ -38,6 +39,17 @@ class CoverageSettings:
     kill_margin_s: float
     jobs: int
     tables: Path
+
+
+@dataclass(frozen=True)
+class OptimalSettings:
+    """The optimal section's sizes (issue 21): the optimal table, its seeded off-grid states, the query's budget
+    and the offline optimum's (s)."""
+
+    table: Path
+    states: int
+    query_budget_s: float
+    optimum_budget_s: float
 
 
 @dataclass(frozen=True)
@@ -69,6 +81,15 @@ class Settings:
     baseline_max_iter: int
     baseline_max_delay_s: float | None  # None: the scenario's own start-delay window
     coverage: CoverageSettings
+    optimal: OptimalSettings | None = None  # None: the section is skipped
+
+
+def optimal_settings(quick: bool, trim: bool, table: Path | None, states: int | None) -> OptimalSettings:
+    """Full: 30 states (the issue's bar); quick: 2; trim: 1 on the golden table (feasibility-only: the section
+    proves its code path and says there is no optimum to compare)."""
+    default_table, default_states = (GOLDEN_TABLE, 1) if trim else (OPTIMAL_TABLE, 2 if quick else 30)
+    return OptimalSettings(default_table if table is None else table, default_states if states is None else states,
+                           COVERAGE_BUDGET_S, 600.0)
 
 
 def coverage_settings(quick: bool, trim: bool, states: int | None, jobs: int, tables: Path | None) -> CoverageSettings:

@@ -30,13 +30,14 @@ BUDGET_RAN_OUT = "budget ran out"  # the plan's own deadline ended a solve: on t
 @dataclass(frozen=True)
 class CliRun:
     """What one process did: exit code (None: killed at the hard timeout), wall time (s), its output, and the
-    plan file's ``metrics`` when it wrote one."""
+    plan file's ``metrics`` (and whole ``document``) when it wrote one."""
 
     exit_code: int | None
     wall_s: float
     stdout: str
     stderr: str
     metrics: dict[str, Any] | None
+    document: dict[str, Any] | None = None
 
 
 @lru_cache(maxsize=1)
@@ -73,8 +74,8 @@ def run_cli(args: list[str], kill_after_s: float) -> CliRun:
             stdout, stderr = proc.communicate()
             code = None
         wall = time.perf_counter() - t0
-        metrics = json.loads(plan_json.read_text(encoding="utf-8"))["metrics"] if plan_json.is_file() else None
-    return CliRun(code, wall, stdout, stderr, metrics)
+        doc = json.loads(plan_json.read_text(encoding="utf-8")) if plan_json.is_file() else None
+    return CliRun(code, wall, stdout, stderr, None if doc is None else doc["metrics"], doc)
 
 
 def failed_checks(metrics: dict[str, Any]) -> list[dict[str, Any]]:

@@ -123,6 +123,26 @@ def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:
     return f"coverage ({c['states_per_kind']} states per kind, budget {c['budget_s']:g} s, {c['jobs']} at a time)", rows
 
 
+def _optimal(o: dict[str, Any]) -> tuple[str, list[Row]]:
+    if o.get("runs") is None:
+        return "optimal", [("skipped", str(o.get("skipped")))]
+    g = o["cost_gap"]
+    fmt = {k: "n/a" if v is None else format(v, ".3g") for k, v in {**g["absolute"], **{
+        f"rel_{k}": v for k, v in g["relative"].items()}}.items()}
+    rows = [("feasible / without re-solve", f"{o['fraction_feasible']:.0%} / "
+             f"{o['fraction_feasible_without_resolve']:.0%} of {o['states']} (sources {o['sources']})"),
+            ("query latency", timing(o["latency_s"])),
+            ("offline optimum wall", f"{timing(o['optimum_wall_s'])}; {o['optima_feasible']} feasible"),
+            ("cost gap query − optimum", f"p50 {fmt['p50']}, p95 {fmt['p95']}, max {fmt['max']} (relative p50 "
+                                         f"{fmt['rel_p50']}, p95 {fmt['rel_p95']}; {g['compared']} compared)")]
+    for name, bar in o["bars"].items():
+        verdict = "n/a" if bar["met"] is None else "met" if bar["met"] else "NOT met"
+        value = "n/a" if bar["value"] is None else format(bar["value"], ".3g")
+        rows.append((f"bar {name}", f"{value} ({'≤' if bar['at_most'] else '≥'} {bar['bar']:g}): {verdict}"
+                                    f"{'' if bar['enough_states'] else ' (fewer than 30 states)'}"))
+    return f"optimal ({o['table']}, {o['scenario']})", rows
+
+
 def _reach(r: dict[str, Any]) -> tuple[str, list[Row]]:
     rows = [(f"{kind} {name}", f"{e['out_of_reach']}/{e['states']} out of reach")
             for kind, entry in r.items() if isinstance(entry, dict) and kind not in ("what_ifs",)
@@ -131,7 +151,7 @@ def _reach(r: dict[str, Any]) -> tuple[str, list[Row]]:
 
 
 SECTIONS = {"primitives": _primitives, "query": _query, "build": _build, "planner": _planner,
-            "baseline": _baseline, "coverage": _coverage, "reach": _reach}
+            "baseline": _baseline, "coverage": _coverage, "optimal": _optimal, "reach": _reach}
 
 
 def print_report(result: dict[str, Any]) -> None:

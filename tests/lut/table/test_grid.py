@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[3]
 GRIDS = ROOT / "configs" / "grids"
 SCEN_I = ROOT / "configs" / "scenarios" / "scenario_I.toml"
 SCEN_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
-BUNDLED = {"ci": 4, "ci_optimal": 4, "demo": 12, "flat_spin": 1092, "tumble": 1125}
+BUNDLED = {"ci": 4, "ci_optimal": 4, "demo": 12, "flat_spin": 1092, "flat_spin_I_energy": 18, "tumble": 1125}
 # a three-axis flat-spin grid (3 rates × 2 spin-axis angles × 4 phases) owned by the tests
 THREE_AXES = """
 name = "three_axes"

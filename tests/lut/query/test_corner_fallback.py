@@ -1,0 +1,74 @@
+"""A query whose interpolated plan fails verification tries its heaviest corners' own plans before any solve
+(issue 21): the first that verifies is the answer, at most ``CORNER_TRIES`` are tried, and an asked-for refine
+skips them. The planner is replaced by a stand-in whose verdict depends on which parameters it is given."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lut.query import table_query as tq_module
+from lut.query.interpolation import Candidate
+from lut.query.result import QuerySource
+from lut.query.table_query import TableQuery
+from lut.table.point_result import PointResult, PointStatus
+from planner.model.target import TargetState
+
+GOLDEN = Path(__file__).resolve().parents[2] / "data" / "ci_golden.h5"
+STATE = TargetState(np.array([0.9996573249755573, 0, 0, 0.026176948307873]), np.radians([0.0, 0.0, 3.8]))
+
+
+@dataclass
+class _Report:
+    feasible: bool
+
+
+@pytest.fixture(scope="module")
+def opened() -> TableQuery:
+    return TableQuery(GOLDEN)
+
+
+def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: set[int]) -> list:
+    """Corners with these weights; a plan verifies iff it is one of ``feasible``'s own. Returns the tried order."""
+    candidates = [Candidate(c, w, tq.points[c].parameters) for c, w in weights.items()]
+    owner = {id(c.parameters): c.corner for c in candidates}
+    tried: list = []
+
+    def simulate_and_verify(state, parameters, latency):
+        corner = owner.get(id(parameters), "interpolated")
+        tried.append(corner)
+        return object(), _Report(corner in feasible)
+
+    def refine(state, warm, budget_s):
+        tried.append("refine" if warm is not None else "cold")
+        return PointResult(-1, PointStatus.FAILED, "stand-in: no solve")
+
+    monkeypatch.setattr(tq, "corner_candidates", lambda state: candidates)
+    monkeypatch.setattr(tq, "simulate_and_verify", simulate_and_verify)
+    monkeypatch.setattr(tq, "refine", refine)
+    return tried
+
+
+def test_the_heaviest_corner_that_verifies_is_the_answer_without_a_solve(opened, monkeypatch):
+    tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0, 2})
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", 1, 2]  # by weight; corner 0 would verify too but is never reached
+    assert res.source is QuerySource.CORNER and res.corners_used == [2] and res.report.feasible
+    assert "corners_s" in res.latency_s and "refine_s" not in res.latency_s
+
+
+def test_only_corner_tries_are_made_then_the_solves_run(opened, monkeypatch):
+    tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0})
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried[:3] == ["interpolated", 1, 2] and tq_module.CORNER_TRIES == 2
+    assert tried[3:] == ["refine", "cold"]  # warm from the interpolation, then cold: both give nothing here
+    assert res.source is QuerySource.INTERPOLATED and not res.report.feasible
+
+
+def test_an_asked_for_refine_skips_the_corners(opened, monkeypatch):
+    tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible={0, 1})
+    opened.query(STATE, budget_s=100.0, refine=True)
+    assert tried[:2] == ["interpolated", "refine"] and 0 not in tried and 1 not in tried
