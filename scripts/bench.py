@@ -28,8 +28,9 @@ Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --c
 ``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget, one process
 at a time: about a minute per state on one core. Alone: ``scripts/bench.py --only optimal --optimal-states 10``.
 
-``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many no meeting time
-brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a longer window.
+``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many
+no meeting time brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a
+longer window.
 """
 
 from __future__ import annotations
