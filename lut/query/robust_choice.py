@@ -7,7 +7,9 @@ budget allows and the plain answer was not already solved, a warm-started solve 
 Each is re-simulated and verified at the observed state; a feasible one is executed against the same drawn
 true states (common random numbers, so the comparison is paired), and the highest success probability
 wins; a tie keeps the earlier candidate, so the plain answer is replaced only by a strictly more robust
-plan. The plain answer is always judged, even when its own solve used the whole budget.
+plan. The plain query runs within the budget less the time its judgement is expected to take
+(:data:`JUDGE_RUN_S` a run), so the plain answer is judged inside the budget; a judgement that no longer fits
+is not started (the answer is then the plain one, said not judged).
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ if TYPE_CHECKING:
 
 FINISH_RESERVE_S = 3.0  # kept back from the budget to print and export the chosen plan [s]
 MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
+JUDGE_RUN_S = 2.5  # expected wall time of one drawn run per worker before any was measured: scenario II's simulate
+# + verify is 1.1 s on an idle core and ~2.5 s on one loaded twice over [s]
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,7 @@ class RobustCandidate:
     plan: GraspPlan
     report: VerifyReport
     estimate: SuccessEstimate | None
+    not_judged: str = ""  # why a candidate feasible as observed was not drawn (the budget), "" when it was
 
 
 @dataclass(frozen=True)
@@ -71,6 +76,9 @@ def candidate_lines(choice: RobustChoice) -> list[str]:
     lines = []
     for c in choice.candidates:
         mark = "→" if c is choice.chosen else " "
+        if c.not_judged:
+            lines.append(f"{mark} {c.label:<14} feasible at the observed state, not judged: {c.not_judged}")
+            continue
         if c.estimate is None:
             why = "; ".join(c.report.violations)[:80]
             lines.append(f"{mark} {c.label:<14} infeasible at the observed state ({why})")
@@ -85,20 +93,23 @@ def candidate_lines(choice: RobustChoice) -> list[str]:
 
 def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, budget_s: float,
                  refine: bool = True) -> RobustChoice:
-    """The module docstring's choice for ``state``: the plain query within ``budget_s`` [s] first (always judged),
-    then the other candidates while what is left of the budget covers the dearest judgement so far; ``refine``
+    """The module docstring's choice for ``state``: the plain query first, within ``budget_s`` [s] less its expected
+    judgement, then the other candidates while what is left covers the dearest judgement so far; ``refine``
     False leaves out the warm-started solve (the table's own candidates only)."""
     t0 = time.perf_counter()
     register_planner(str(tq.scenario_path), tq.planner)
     states = perturbed_states(state, request.model, standard_draws(request.samples, request.seed), 1.0)
-    plain = tq.query(state, budget_s=max(budget_s - FINISH_RESERVE_S, 1.0))
-    c0 = time.perf_counter()
-    judged = [_judge(tq, states, f"plain {plain.source}", plain.source, plain.plan, plain.report, request)]
-    cost_s = time.perf_counter() - c0  # the dearest judgement so far: a next one starts only if this much is left
+    cost_s = request.samples * JUDGE_RUN_S / max(request.jobs, 1)  # a judgement's expected cost, then its dearest
 
     def time_left() -> float:
         return budget_s - (time.perf_counter() - t0) - FINISH_RESERVE_S
 
+    plain = tq.query(state, budget_s=max(budget_s - FINISH_RESERVE_S - cost_s, 1.0))
+    c0 = time.perf_counter()
+    judged = [_judge(tq, states, f"plain {plain.source}", plain.source, plain.plan, plain.report, request,
+                     time_left() >= cost_s)]
+    if judged[0].estimate is not None:
+        cost_s = max(cost_s, time.perf_counter() - c0)
     for c in tq.corner_candidates(state):
         if time_left() < cost_s:
             break
@@ -120,15 +131,18 @@ def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, bud
 
 def most_robust(judged: list[RobustCandidate]) -> RobustCandidate:
     """The judged candidate with the highest success probability, the earliest of a tie (the plain answer, first,
-    is replaced only by a strictly more robust plan); the plain answer when none was feasible as observed."""
+    is replaced only by a strictly more robust plan); the plain answer when none was judged."""
     feasible = [c for c in judged if c.estimate is not None]
     return max(feasible, key=lambda c: c.estimate.probability if c.estimate else -1.0, default=judged[0])
 
 
 def _judge(tq: TableQuery, states: list[TargetState], label: str, source: QuerySource, plan: GraspPlan,
-           report: VerifyReport, request: RobustRequest) -> RobustCandidate:
-    """One candidate, verified at the observed state, executed against ``states`` if it is feasible there."""
+           report: VerifyReport, request: RobustRequest, in_time: bool = True) -> RobustCandidate:
+    """One candidate, verified at the observed state, executed against ``states`` if it is feasible there and the
+    judgement fits in the time left (``in_time``)."""
     if not report.feasible:
         return RobustCandidate(label, source, plan, report, None)
+    if not in_time:
+        return RobustCandidate(label, source, plan, report, None, "the budget left no time to draw its runs")
     outcomes, _ = run_states(str(tq.scenario_path), plan.parameters, states, request.step_s, request.jobs)
     return RobustCandidate(label, source, plan, report, success_estimate(outcomes))
