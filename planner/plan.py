@@ -12,6 +12,7 @@ next scanned meeting times (:mod:`planner.plan_grasps`). Times are seconds since
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field, replace
 
@@ -158,9 +159,12 @@ class Planner:
         """This scenario without its approach costs, sharing this planner's stabilization NLP: the first stage of
         a costed plan (built on first use)."""
         if self._feasibility is None:
-            sc = self.scenario
-            self._feasibility = Planner(replace(sc, costs=sc.costs.without_approach_terms()))
-            self._feasibility._stabilization = self.stabilization_problem
+            stabilization = self.stabilization_problem  # built before the copy, so both hold the one NLP
+            feasibility = copy.copy(self)  # the models, tracking and stabilization do not depend on approach costs
+            feasibility.scenario = replace(self.scenario, costs=self.scenario.costs.without_approach_terms())
+            feasibility.approach = ApproachProblem(feasibility.scenario, self.ff)
+            feasibility._stabilization, feasibility._feasibility = stabilization, None
+            self._feasibility = feasibility
         return self._feasibility
 
     def _build_stabilization(self, cold: bool) -> None:

@@ -8,7 +8,7 @@ from lut.table.point_result import PointStatus
 from lut.table.schema import TableError
 from lut.table.store import Table
 from planner.config.scenario import Scenario
-from planner.nlp.bspline import UniformCubicBSpline
+from planner.phases.approach import approach_spline
 from planner.phases.stabilization import stabilization_spline
 from planner.phases.tracking_profile import TRACKING_NODES
 
@@ -16,7 +16,7 @@ from planner.phases.tracking_profile import TRACKING_NODES
 def parameter_shapes(scenario: Scenario) -> dict[str, tuple[int, ...]]:
     """Per-point shape of every parameter a query interpolates, for ``scenario``'s plans."""
     n = scenario.robot.n_joints
-    approach = UniformCubicBSpline(scenario.approach.n_vertices, scenario.phases.approach_s)
+    approach = approach_spline(scenario)
     return {"approach_params": (n * approach.n_free_per_joint,), "base_offset_m": (2,), "start_delay_s": (),
             "q_tracking": (len(TRACKING_NODES), n),
             "stabilization_params": (n * stabilization_spline(scenario).n_free_per_joint,)}

@@ -81,6 +81,11 @@ class ApproachSolution:
                    min_distance_m=float("nan"))
 
 
+def approach_spline(scenario: Scenario) -> UniformCubicBSpline:
+    """The approach's joint B-spline: ``n_vertices`` over t_f¹ (paper Eq. 22-23)."""
+    return UniformCubicBSpline(scenario.approach.n_vertices, scenario.phases.approach_s)
+
+
 class ApproachProblem:
     """The approach NLP of one scenario, built once and solved for many target states.
 
@@ -97,7 +102,7 @@ class ApproachProblem:
         self.scenario = sc = scenario
         self.robot = sc.robot
         self.ff = ff or FreeFloatingModel(sc.robot, compile_rk4=True)
-        self.spline = UniformCubicBSpline(sc.approach.n_vertices, sc.phases.approach_s)
+        self.spline = approach_spline(sc)
         self.k = k = sc.approach.via_points
         self.m_steps = k * int(np.ceil(sc.approach.rk4_steps / k))  # via points sit on RK4 nodes
         self.n_params = self.robot.n_joints * self.spline.n_free_per_joint

@@ -28,7 +28,7 @@ WHAT_IFS = {  # name → how the scenario is changed
 def reach(settings: Settings) -> dict[str, Any]:
     """Per kind: how many of the coverage states are out of reach under each what-if, and which (indices)."""
     from planner.model.target_state import TargetState
-    from planner.nlp.bspline import UniformCubicBSpline
+    from planner.phases.approach import approach_spline
     from planner.phases.approach_guess import reach_scan
 
     c = settings.coverage
@@ -42,7 +42,7 @@ def reach(settings: Settings) -> dict[str, Any]:
         entry: dict[str, Any] = {}
         for name, change in WHAT_IFS.items():
             sc = change(base)
-            spline = UniformCubicBSpline(sc.approach.n_vertices, sc.phases.approach_s)
+            spline = approach_spline(sc)
             unreachable = [i for i, s in enumerate(states) if not reach_scan(sc, spline, s).reachable]
             entry[name] = {"out_of_reach": len(unreachable), "states": len(states), "indices": unreachable}
         out[kind.name] = entry

@@ -12,7 +12,7 @@ from lut.solve.point_worker import solve_point
 from lut.table.records import PARAMETER_KEYS
 from planner.config.scenario import load_scenario
 from planner.model.target import TargetState
-from planner.nlp.bspline import UniformCubicBSpline
+from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import MeetingOutcome, reach_scan
 from tests.support.cli import ROOT, lutgen
 
@@ -45,7 +45,7 @@ def test_plan_of_an_unreachable_state_is_infeasible_in_seconds_with_the_reason(t
 
 
 def test_the_scan_tells_what_it_found_at_every_meeting_time(scenario_II):
-    spline = UniformCubicBSpline(scenario_II.approach.n_vertices, scenario_II.phases.approach_s)
+    spline = approach_spline(scenario_II)
     unreachable = reach_scan(scenario_II, spline, _state(UNREACHABLE_OMEGA_DEG_S))
     reachable = reach_scan(scenario_II, spline, scenario_II.target_state.as_state())
     n_times = int(scenario_II.phases.max_start_delay_s // 2.0) + 1

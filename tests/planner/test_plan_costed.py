@@ -122,3 +122,19 @@ def test_scenario_II_energy_plans_feasible_no_costlier_than_its_feasibility_plan
     feasible = Planner(replace(sc, costs=sc.costs.without_approach_terms())).plan(state)
     assert verify(plan).feasible, verify(plan).violations
     assert approach_energy(plan.approach.base_offset_m) <= approach_energy(feasible.approach.base_offset_m) + 1e-12
+
+
+def test_the_feasibility_stage_shares_all_but_the_approach_nlp():
+    """The costed plan's first stage differs from the costed planner only by its approach costs: one models, tracking
+    and stabilization NLP between them (built once), its own approach NLP without costs, the costed one untouched."""
+    from planner.config.scenario import load_scenario
+    from planner.plan import Planner
+
+    costed_planner = Planner(load_scenario("configs/scenarios/scenario_II_energy.toml"))
+    stage = costed_planner.feasibility_planner
+    assert stage is costed_planner.feasibility_planner
+    assert stage.ff is costed_planner.ff and stage.tracking is costed_planner.tracking
+    assert stage.stabilization_problem is costed_planner.stabilization_problem
+    assert stage.approach is not costed_planner.approach and stage.approach.ff is costed_planner.ff
+    assert not stage.scenario.costs.weights_approach and costed_planner.scenario.costs.approach_energy == 1.0
+    assert stage.scenario.costs.without_approach_terms() == stage.scenario.costs

@@ -21,8 +21,8 @@ from lut.table.store import Table
 from planner.config.scenario import load_scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetState
-from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.costs import manipulability
+from planner.phases.approach import approach_spline
 from planner.plan_parameters import ApproachParameters
 from tests.support.cli import REPLAY_PLAN, lutgen_in_process
 
@@ -35,7 +35,7 @@ OFF_GRID = ("--attitude", "0.9996573249755573,0,0,0.026176948307873", "--omega-d
 def _scorer(name: str) -> CostScorer:
     scenario = load_scenario(SCENARIOS / f"{name}.toml")
     return CostScorer(scenario, FreeFloatingModel(scenario.robot),
-                      UniformCubicBSpline(scenario.approach.n_vertices, scenario.phases.approach_s))
+                      approach_spline(scenario))
 
 
 @pytest.fixture(scope="module")
