@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planner.deadline import Deadline
 from planner.model.target import TargetMotion, TargetState
@@ -114,7 +115,7 @@ def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParamet
 
 
 def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent,
-             tracking_speed_scale: float, deadline: Deadline) -> None:
+             tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> None:
     """Trust-region steps from the current grasp: the full step first, then from :data:`FIRST_RADIUS_M`, doubled
     after a kept step and halved after a refused one; stops after :data:`MAX_STEPS`, below :data:`MIN_RADIUS_M`,
     when a step gains nothing, or at ``deadline``."""
@@ -132,7 +133,7 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
 
 
 def _step(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent, radius_m: float,
-          tracking_speed_scale: float, deadline: Deadline) -> bool | None:
+          tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> bool | None:
     """One trust-region step: True if kept, False if refused (the approach failed, the tracking asked too much, or
     the stabilization failed), None if the approach gained nothing."""
     app = solve_approach_near(planner.approach, state, out.candidate.app, radius_m, tracking_speed_scale,

@@ -29,7 +29,7 @@ from planner.model.target import TargetMotion, TargetState
 from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
-from planner.phases.approach_guess import ScanOnDemand
+from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
 from planner.phases.approach_solve import solve_approach
 from planner.phases.stabilization import (
     GraspState,
@@ -39,6 +39,7 @@ from planner.phases.stabilization import (
 )
 from planner.phases.stabilization_solve import solve_stabilization
 from planner.phases.tracking import TrackingResult
+from planner.phases.tracking_profile import TRACKING_NODES, node_segment
 from planner.plan_parameters import ApproachParameters, PlanParameters
 from planner.plan_samples import PhaseSamples
 
@@ -50,8 +51,9 @@ TIGHTENING_ROUNDS = 2
 RATE_DEMAND_TOLERATED = 1.25
 TIGHTENING_MARGIN = 0.97  # a tightened rate bound sits this far below what the IK asked for
 # a cold plan whose stabilization fails tries the grasps reached from the approach's next scanned guesses, up
-# to this many guesses in all (the approach's own default number of starts)
-GRASP_GUESSES = 3
+# to this many guesses in all: scenario II's grasps are mostly unbrakeable within ±10 N·m (screened out), and a
+# later meeting time is the cheapest way to another grasp
+GRASP_GUESSES = 5
 # IPOPT iterations (coarse + full NLP) a stabilization gets while another grasp remains to be tried: successful
 # cold solves take far fewer, failing ones several times more
 STABILIZATION_BUDGET = 120
@@ -63,6 +65,10 @@ SCREEN_BUDGET = 20
 # least APPROACH_RETRY_MIN: a neighbouring meeting time is about as hard to reach as the first
 APPROACH_RETRY_FACTOR = 3
 APPROACH_RETRY_MIN = 60
+# a retry's approach keeps its meeting time within this of its guess's [s] and AVOID_GAP_S from the grasps already
+# tried: free, the NLP drifted back to the grasp that had just failed (scenario II: grasps at 69.9, 70.0 and 68.9 s from
+# guesses 6 s apart). The first approach stays free: boxed, scenario I's default state found no approach at all
+MEETING_TIME_BOX_S = MIN_SEPARATION_S / 2
 
 
 def approach_retry_budget(first_iterations: int) -> int:
@@ -135,7 +141,8 @@ class GraspSearch:
                  motion: TargetMotion, deadline: Deadline = NO_DEADLINE) -> None:
         self.planner, self.state, self.warm, self.scan, self.motion = planner, state, warm, scan, motion
         self.deadline = deadline
-        self.tracking_speed_scale = 1.0  # of the approach's tracking-rate bounds; tightened within this plan
+        # of the approach's tracking-rate bounds, per tracking segment; tightened within this plan
+        self.tracking_speed_scale = np.ones(len(TRACKING_NODES))
         self.notes: list[str] = []
         self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
         self.stabilization_s = 0.0  # the phase's wall time: NLP builds (if new) and solves [s]
@@ -206,11 +213,13 @@ class GraspSearch:
 
     def _grasps(self, first: GraspCandidate) -> Iterator[GraspCandidate]:
         """``first``, then the grasps the approach reaches from its next scanned guesses while one remains."""
-        candidate = first
+        candidate, tried = first, []
         yield candidate
         while self._another_grasp_remains(candidate) and not self.deadline.passed:
+            tried.append(candidate.app.start_delay_s)
             nxt = self._solve_approach(None, max_starts=GRASP_GUESSES, skip_guesses=candidate.app.start_guess + 1,
-                                       max_iterations=approach_retry_budget(first.app.iterations))
+                                       max_iterations=approach_retry_budget(first.app.iterations),
+                                       meeting_time_box_s=MEETING_TIME_BOX_S, avoid_start_delays_s=tuple(tried))
             if not nxt.success:
                 self.approach_s += nxt.solve_time_s
                 self.notes.append(f"the approach from its next guesses failed ({nxt.status})")
@@ -219,7 +228,7 @@ class GraspSearch:
             self.approach_s += candidate.app.solve_time_s
             yield candidate
 
-    def _solve_approach(self, warm: ApproachParameters | None, **options: int) -> ApproachSolution:
+    def _solve_approach(self, warm: ApproachParameters | None, **options: object) -> ApproachSolution:
         """The approach NLP for this plan's state, scan and tracking-rate scale."""
         return solve_approach(self.planner.approach, self.state, warm, tracking_speed_scale=self.tracking_speed_scale,
                               scan=self.scan, deadline=self.deadline, **options)
@@ -245,10 +254,14 @@ class GraspSearch:
             if ratio <= RATE_DEMAND_TOLERATED or round_ == TIGHTENING_ROUNDS or not app.success \
                     or self.deadline.passed:
                 break
-            self.tracking_speed_scale = scale = self.tracking_speed_scale / ratio * TIGHTENING_MARGIN
-            self.notes.append(f"tracking joint rate {ratio:.3f}× the limit: approach re-solved with its tracking-rate "
-                              f"bounds scaled by {scale:.3f}")
-            retry = self._solve_approach(app.parameters)
+            segment = node_segment(tr.peak_demand_time_s, self.planner.scenario.phases.tracking_s)
+            self.tracking_speed_scale = self.tracking_speed_scale.copy()
+            self.tracking_speed_scale[segment] *= TIGHTENING_MARGIN / ratio
+            self.notes.append(f"tracking joint rate {ratio:.3f}× the limit at {tr.peak_demand_time_s:.2f} s into "
+                              f"tracking: approach re-solved with the rate bounds of tracking segment {segment + 1} "
+                              f"scaled by {self.tracking_speed_scale[segment]:.3f}")
+            # near the grasp whose demand was measured (free, a retry drifted back to a grasp that had failed)
+            retry = self._solve_approach(app.parameters, meeting_time_box_s=MEETING_TIME_BOX_S)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = accumulated(app, retry)

@@ -42,6 +42,7 @@ class SolveOutcome(StrEnum):
     GIVEN = "given"  # parameters used as given (a table query), no solve
     NO_GUESS_LEFT = "no scanned initial guess left to start from"
     NO_PINNED_START = "no reachable meeting time with the base pinned"
+    TORQUE_BETWEEN_VIA_POINTS = "Torque_Over_Limit_Between_Via_Points"  # feasible at the via points only
 
     @classmethod
     def from_ipopt(cls, return_status: str) -> SolveOutcome:

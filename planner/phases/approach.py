@@ -27,6 +27,7 @@ from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.robot import fk_function
+from planner.model.singular_joints import singular_angles
 from planner.model.target_state import TargetState
 from planner.nlp import constraint_backoff as backoff
 from planner.nlp.bspline import UniformCubicBSpline
@@ -107,6 +108,7 @@ class ApproachProblem:
         self.m_steps = k * int(np.ceil(sc.approach.rk4_steps / k))  # via points sit on RK4 nodes
         self.n_params = self.robot.n_joints * self.spline.n_free_per_joint
         self.tracking_times_s = [f * sc.phases.tracking_s for f in TRACKING_NODES]
+        self.singular_angles = singular_angles(sc.robot)
         self.decision = self._decision_layout()
         self.n_w = self.decision.size
         self.parameter_layout = VectorLayout()

@@ -132,8 +132,8 @@ class ScanOnDemand:
         self._result: ReachScan | None = None
 
     def serves(self, state: TargetState, count: int) -> bool:
-        """True when this is the scan of ``state`` for ``count`` guesses."""
-        return count == self.count and np.array_equal(state.attitude_wxyz, self.state.attitude_wxyz) \
+        """True when this is the scan of ``state`` for at least ``count`` guesses (the first ``count`` serve)."""
+        return count <= self.count and np.array_equal(state.attitude_wxyz, self.state.attitude_wxyz) \
             and np.array_equal(state.omega_body_rad_s, self.state.omega_body_rad_s)
 
     @property

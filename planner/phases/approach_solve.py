@@ -23,6 +23,16 @@ from planner.plan_parameters import ApproachParameters
 
 Array = NDArray[np.float64]
 
+# the approach's end and the tracking nodes keep this far [rad] on one side of each singular joint angle: the
+# tracking IK's rates grow like 1/sin of the distance to it (scenario II: 16× the limit at 0.02 rad)
+SINGULARITY_CLEARANCE_RAD = 0.2
+# IPOPT iterations a start from a scanned guess gets before the next guess is tried: cold starts that led to feasible
+# plans took 5-78 (two scenario I flat spins 246 and 315); failing ones ran 400-900 and spent the plan's budget
+COLD_START_ITERATIONS = 150
+# a retry's meeting time keeps at least this far [s] from those of the grasps already tried (a grasp 1 s away is the
+# same grasp: scenario II's retries met at 37.8 s twice, at the touching edges of their guesses' boxes)
+AVOID_GAP_S = 2.0
+
 
 def decision_vector(start: ApproachParameters | ApproachSolution | ApproachGuess) -> Array:
     """``w`` without extras, ``[params, base offset, start delay, tracking nodes]``, of a start."""
@@ -31,8 +41,10 @@ def decision_vector(start: ApproachParameters | ApproachSolution | ApproachGuess
 
 def solve_approach(problem: ApproachProblem, state: TargetState,
                    warm_start: ApproachParameters | ApproachSolution | None = None, max_starts: int = 3,
-                   tracking_speed_scale: float = 1.0, skip_guesses: int = 0, max_iterations: int | None = None,
-                   scan: ScanOnDemand | None = None, deadline: Deadline = NO_DEADLINE) -> ApproachSolution:
+                   tracking_speed_scale: float | Array = 1.0, skip_guesses: int = 0, max_iterations: int | None = None,
+                   scan: ScanOnDemand | None = None, deadline: Deadline = NO_DEADLINE,
+                   meeting_time_box_s: float | None = None,
+                   avoid_start_delays_s: tuple[float, ...] = ()) -> ApproachSolution:
     """Solve ``problem`` for one observed target state.
 
     With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that
@@ -40,10 +52,15 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     or not of this state and count), best first, less the first ``skip_guesses`` of them (the planner's next
     grasp when a stabilization failed), and returns the first success (or the last attempt, with its failure
     status; its ``start_guess`` says which guess). ``tracking_speed_scale`` scales the tracking-node rate
-    bounds. ``max_iterations`` (None: only the scenario's per-NLP ``max_iter``) bounds the IPOPT iterations
-    of all the starts together; a solve that spends it ends unsuccessful, status ``Iteration_Budget_Exhausted``
-    (IPOPT calls back once per iteration, and once more in a cold start's restoration phase). Past ``deadline``
-    no further start is tried and a running solve ends, status ``Out_Of_Time``.
+    bounds (one factor, or one per tracking segment). ``max_iterations`` (None: only the scenario's per-NLP
+    ``max_iter``) bounds the IPOPT iterations of all the starts together; a solve that spends it ends unsuccessful,
+    status ``Iteration_Budget_Exhausted`` (IPOPT calls back once per iteration, and once more in a cold start's
+    restoration phase). Past ``deadline`` no further start is tried and a running solve ends, status
+    ``Out_Of_Time``. The approach's end and the tracking nodes stay on one side of every singular joint angle
+    (:func:`_one_side_of_singularities`). ``meeting_time_box_s`` keeps every start within that many seconds of its
+    own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each of ``avoid_start_delays_s``
+    (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from a
+    scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried.
     """
     t0 = time.perf_counter()
     warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, max_starts, tracking_speed_scale,
@@ -61,12 +78,18 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
             break
-        result = _solve_once(problem, state, starts[attempt], tracking_speed_scale, cold=attempt >= n_warm,
-                             max_iterations=left, deadline=deadline)
-        if attempt >= n_warm:
+        cold = attempt >= n_warm
+        limit = min(left if left is not None else np.inf, COLD_START_ITERATIONS if cold else np.inf)
+        lbw, ubw = _meeting_time_box(problem, starts[attempt], meeting_time_box_s, avoid_start_delays_s)
+        if lbw is None:
+            continue
+        result = _solve_once(problem, state, starts[attempt], tracking_speed_scale, lbw, ubw, cold=cold,
+                             max_iterations=None if limit == np.inf else int(limit), deadline=deadline)
+        if cold:
             result = replace(result, start_guess=skip_guesses + attempt - n_warm)
         iterations += result.iterations
-        if result.success or problem.budget.budget_exhausted or problem.budget.out_of_time:
+        budget_spent = problem.budget.budget_exhausted and left is not None and limit == left
+        if result.success or budget_spent or problem.budget.out_of_time:
             break
     if result is None:
         return _no_start(problem, SolveOutcome.NO_GUESS_LEFT, problem.scenario.base_offset_guess_m,
@@ -75,7 +98,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
 
 
 def solve_approach_near(problem: ApproachProblem, state: TargetState, anchor: ApproachSolution, radius_m: float,
-                        tracking_speed_scale: float, max_iterations: int | None,
+                        tracking_speed_scale: float | Array, max_iterations: int | None,
                         deadline: Deadline = NO_DEADLINE) -> ApproachSolution:
     """The approach NLP warm from ``anchor`` with its meeting time kept (the start delay pinned) and the base offset
     θ_b(0) within ``radius_m`` [m] of the anchor's per axis (``inf``: the scenario's bounds only), within
@@ -89,6 +112,26 @@ def solve_approach_near(problem: ApproachProblem, state: TargetState, anchor: Ap
                        max_iterations=max_iterations, deadline=deadline)
 
 
+def _meeting_time_box(problem: ApproachProblem, w0: Array, box_s: float | None,
+                      avoid_s: tuple[float, ...]) -> tuple[Array, Array] | tuple[None, None]:
+    """The problem's bounds ``(lbw, ubw)``, the start delay within ``box_s`` [s] of ``w0``'s (None: as they are) and
+    :data:`AVOID_GAP_S` clear of each delay in ``avoid_s`` on ``w0``'s side of it; ``(None, None)`` when nothing is
+    left (``w0``'s own delay that close to one avoided)."""
+    if box_s is None:
+        return problem.lbw, problem.ubw
+    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
+    delay = problem.decision.slice("start_delay_s").start
+    lo, hi = max(lbw[delay], w0[delay] - box_s), min(ubw[delay], w0[delay] + box_s)
+    for avoided in avoid_s:
+        if abs(w0[delay] - avoided) < AVOID_GAP_S:
+            return None, None
+        lo, hi = (max(lo, avoided + AVOID_GAP_S), hi) if w0[delay] > avoided else (lo, min(hi, avoided - AVOID_GAP_S))
+    if lo > hi:
+        return None, None
+    lbw[delay], ubw[delay] = lo, hi
+    return lbw, ubw
+
+
 def approach_cost(problem: ApproachProblem, state: TargetState, start: ApproachParameters | ApproachSolution) -> float:
     """The NLP's weighted cost (Eq. 14-16) of ``start``'s decision parameters for ``state``."""
     return problem.objective_at(decision_vector(start), state)
@@ -96,7 +139,7 @@ def approach_cost(problem: ApproachProblem, state: TargetState, start: ApproachP
 
 def _base_pinned_first(problem: ApproachProblem, state: TargetState,
                        warm_start: ApproachParameters | ApproachSolution | None, max_starts: int,
-                       tracking_speed_scale: float, skip_guesses: int, deadline: Deadline,
+                       tracking_speed_scale: float | Array, skip_guesses: int, deadline: Deadline,
                        ) -> tuple[ApproachParameters | ApproachSolution | None, ApproachSolution | None, int]:
     """``(warm start, failed result, iterations)`` after the base-pinned solve a cold first solve with the
     approach-energy cost makes first (no solve otherwise).
@@ -120,7 +163,7 @@ def _no_start(problem: ApproachProblem, status: SolveOutcome, base_offset_m: tup
 
 
 def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts: int,
-                       tracking_speed_scale: float, deadline: Deadline) -> ApproachSolution:
+                       tracking_speed_scale: float | Array, deadline: Deadline) -> ApproachSolution:
     """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from guesses made for that base."""
     t0 = time.perf_counter()
     gx, gz = problem.scenario.base_offset_guess_m
@@ -140,7 +183,7 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
 
 
-def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float,
+def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,
                 lbw: Array | None = None, ubw: Array | None = None, cold: bool = False,
                 max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE) -> ApproachSolution:
     """One IPOPT run from ``w0`` ``(n_w,)``; ``cold``: starting in the restoration phase."""
@@ -153,9 +196,12 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
         w0 = np.concatenate([w0, [0.0]])
     t0 = time.perf_counter()
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
+    lbw, ubw = _one_side_of_singularities(problem, w0, lbw, ubw, lbg, ubg)
+    w0 = np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w])
     rates = problem.constraints.slice("tracking_rates")
-    lbg[rates] *= tracking_speed_scale
-    ubg[rates] *= tracking_speed_scale
+    per_row = np.repeat(np.broadcast_to(tracking_speed_scale, (len(TRACKING_NODES),)), problem.robot.n_joints)
+    lbg[rates] *= per_row
+    ubg[rates] *= per_row
     solver = problem.cold_solver if cold else problem.solver
     problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations, deadline=deadline)
     sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
@@ -163,6 +209,29 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     stats = solver.stats()
     return _solution(problem, np.asarray(sol["x"]).ravel(), np.asarray(sol["g"]).ravel(), float(sol["f"]), stats,
                      elapsed)
+
+
+def _one_side_of_singularities(problem: ApproachProblem, w0: Array, lbw: Array, ubw: Array, lbg: Array,
+                               ubg: Array) -> tuple[Array, Array]:
+    """Bounds ``(lbw, ubw)`` (copies) and, in place, ``lbg``/``ubg`` that keep the approach's end (its last via
+    point's joint row) and every tracking node on the side of each singular joint angle
+    (:mod:`planner.model.singular_joints`) where the start ``w0``'s grasp node is, :data:`SINGULARITY_CLEARANCE_RAD`
+    from it: the tracking IK joins them through no singularity."""
+    lbw, ubw = lbw.copy(), ubw.copy()
+    n = problem.robot.n_joints
+    nodes = problem.decision.slice("tracking_nodes").start
+    q_end_row = problem.constraints.slice("joint_positions").start + (problem.k - 1) * n
+    for s in problem.singular_angles:
+        j, angle = s.joint_index, s.angle_rad
+        side = 1.0 if w0[nodes + (len(TRACKING_NODES) - 1) * n + j] >= angle else -1.0
+        rows = [nodes + node * n + j for node in range(len(TRACKING_NODES))]
+        if side > 0:
+            lbw[rows] = np.maximum(lbw[rows], angle + SINGULARITY_CLEARANCE_RAD)
+            lbg[q_end_row + j] = max(lbg[q_end_row + j], angle + SINGULARITY_CLEARANCE_RAD)
+        else:
+            ubw[rows] = np.minimum(ubw[rows], angle - SINGULARITY_CLEARANCE_RAD)
+            ubg[q_end_row + j] = min(ubg[q_end_row + j], angle - SINGULARITY_CLEARANCE_RAD)
+    return lbw, ubw
 
 
 def _solution(problem: ApproachProblem, w: Array, g: Array, cost: float, stats: dict,
@@ -174,7 +243,7 @@ def _solution(problem: ApproachProblem, w: Array, g: Array, cost: float, stats: 
     return ApproachSolution(
         params=w[d.slice("spline_params")],
         base_offset_m=w[d.slice("base_offset_m")],
-        start_delay_s=float(w[d.slice("start_delay_s").start]),
+        start_delay_s=_within_window(problem, float(w[d.slice("start_delay_s").start])),
         q_tracking=w[d.slice("tracking_nodes")].reshape(len(TRACKING_NODES), -1),
         success=bool(stats["success"]) and stopped is None,
         status=stopped or SolveOutcome.from_ipopt(str(stats["return_status"])),
@@ -183,6 +252,12 @@ def _solution(problem: ApproachProblem, w: Array, g: Array, cost: float, stats: 
         cost=cost,
         min_distance_m=float(dists[problem.held_to_margin].min()),
     )
+
+
+def _within_window(problem: ApproachProblem, start_delay_s: float) -> float:
+    """``start_delay_s`` [s] inside the start-delay window: an iterate ended early (a deadline, the feasibility stop)
+    may sit up to IPOPT's bound relaxation (1e-8 relative) outside it, and no time before the observation exists."""
+    return float(np.clip(start_delay_s, 0.0, problem.scenario.phases.max_start_delay_s))
 
 
 def _planner_stop(problem: ApproachProblem) -> SolveOutcome | None:

@@ -150,6 +150,10 @@ class _AtViaPoints:
     poses: list[ca.MX]  # k stacked body poses (chaser bodies, then the grasped target)
 
 
+# the torque between via points is checked at this many times as many instants (planner.phases.stabilization_solve)
+DENSE_FACTOR = 4
+
+
 class StabilizationProblem:
     """The stabilization NLP of a scenario; a solve takes the grasp state and its geometry as parameters.
 
@@ -169,11 +173,12 @@ class StabilizationProblem:
         self.torque_limit_nm = torque_limit_nm
         self.coarse_via_points = sc.stabilization.coarse_via_points
         self._coarse: StabilizationProblem | None = None
+        self._dense: ca.Function | None = None
         self.parameter_layout = self._parameter_layout()
         P = ca.MX.sym("P", self.n_params)
         par = ca.MX.sym("par", self.parameter_layout.size)
         self.functions = functions or InnerFunctions.of(sc.robot)
-        via = self._at_via_points(P, par)
+        via = self.at_times(P, par, self.via_times_s)
         self.decision = VectorLayout()
         self.decision.add("spline_params", self.n_params)
         self.constraints = VectorLayout()
@@ -201,8 +206,10 @@ class StabilizationProblem:
             layout.add(name, size)
         return layout
 
-    def _at_via_points(self, P: ca.MX, par: ca.MX) -> _AtViaPoints:
-        """Eq. 24's joints from ``P``, the compound's base by RK4, and what the constraints need at the via points."""
+    def at_times(self, P: ca.MX, par: ca.MX, via_times_s: NDArray[np.float64], with_poses: bool = True) -> _AtViaPoints:
+        """Eq. 24's joints from ``P``, the compound's base by RK4, and what the constraints need at ``via_times_s``
+        [s into the phase] (the NLP's via points, or a denser set to check between them; ``with_poses`` False leaves
+        the bodies' poses out)."""
         sc, fn, lay = self.scenario, self.functions, self.parameter_layout
         robot, T = sc.robot, sc.phases.stabilization_s
         x, h, geo_vec = par[lay.slice("x_base")], par[lay.slice("h_world")], par[lay.slice("geometry")]
@@ -210,7 +217,7 @@ class StabilizationProblem:
         V = stabilization_vertices(self.spline, par[lay.slice("q")], par[lay.slice("qd")], par[lay.slice("qdd")], P)
         # RK4 nodes: a uniform grid refined so that every via point is a node (steps may differ)
         nodes = np.unique(np.round(np.concatenate([np.linspace(0.0, T, sc.stabilization.rk4_steps + 1),
-                                                   self.via_times_s]), 9))
+                                                   via_times_s]), 9))
         mids = 0.5 * (nodes[:-1] + nodes[1:])
         Qn, Qdn, Qddn = (self.spline.evaluate(V, nodes, d) for d in (0, 1, 2))
         Qm, Qdm = (self.spline.evaluate(V, mids, d) for d in (0, 1))
@@ -219,13 +226,15 @@ class StabilizationProblem:
             x = fn.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T, Qdn[i + 1, :].T,
                             h, nodes[i + 1] - nodes[i], geo_vec)
             xs.append(x)
-        via_idx = [int(np.argmin(np.abs(nodes - tv))) for tv in self.via_times_s]
+        via_idx = [int(np.argmin(np.abs(nodes - tv))) for tv in via_times_s]
         forces, torques, omegas, poses = [], [], [], []
         for i in via_idx:
             F, M, w_b, R_ee, p_ee = fn.wrench(xs[i], Qn[i, :].T, Qdn[i, :].T, Qddn[i, :].T, h, geo_vec)
             forces.append(F)
             torques.append(M)
             omegas.append(w_b)
+            if not with_poses:
+                continue
             R_wb = quat_to_rotation_sym(xs[i][3:7])
             out = fn.fk(Qn[i, :].T)
             blocks = [pose_vector(ca.mtimes(R_wb, out[2 * b]), xs[i][:3] + ca.mtimes(R_wb, out[2 * b + 1]))
@@ -242,8 +251,7 @@ class StabilizationProblem:
         self.distance_cb = SceneDistanceCallback("stabilization_distance", self.scene,
                                                  [*robot.body_names, TARGET_BODY], len(via.poses))
         self._distances = self.distance_cb(ca.vertcat(*via.poses))
-        torque_limit = sc.limits.grasp_torque_max_nm if self.torque_limit_nm is None else self.torque_limit_nm
-        tl = bo.WRENCH_FRACTION * (torque_limit if np.isfinite(torque_limit) else np.inf)
+        tl = bo.WRENCH_FRACTION * (self.torque_limit if np.isfinite(self.torque_limit) else np.inf)
         fl = bo.WRENCH_FRACTION * (sc.limits.grasp_force_max_n if np.isfinite(sc.limits.grasp_force_max_n) else np.inf)
         qd_lim = bo.JOINT_VELOCITY_FRACTION * robot.qd_max
         g = self.constraints
@@ -278,6 +286,22 @@ class StabilizationProblem:
             self._coarse = StabilizationProblem(replace(self.scenario, stabilization=st), self.torque_limit_nm,
                                                 self.functions)
         return self._coarse
+
+    @property
+    def torque_limit(self) -> float:
+        """The grasp torque limit this problem holds [N·m] (per component; inf: none)."""
+        return self.scenario.limits.grasp_torque_max_nm if self.torque_limit_nm is None else self.torque_limit_nm
+
+    def dense_torques(self) -> ca.Function:
+        """``(P, par) -> torques (3·m,)`` [N·m, grasp frame] at DENSE_FACTOR times as many instants as the via points
+        (and at them): the NLP's own model between its via points (built on first use)."""
+        if self._dense is None:
+            P = ca.MX.sym("P", self.n_params)
+            par = ca.MX.sym("par", self.parameter_layout.size)
+            times = np.linspace(0.0, self.scenario.phases.stabilization_s, DENSE_FACTOR * self.k + 1)
+            self._dense = ca.Function("stabilization_dense_torques", [P, par],
+                                      [self.at_times(P, par, np.union1d(times, self.via_times_s), False).torques])
+        return self._dense
 
     def parameters(self, grasp: GraspState) -> Array:
         """The NLP's parameter vector for ``grasp``: its state, momentum and geometry."""

@@ -20,6 +20,12 @@ from planner.phases.stabilization import GraspState, StabilizationProblem, Stabi
 
 Array = NDArray[np.float64]
 
+# a solve whose torque peaks above the limit between its via points is repeated this many times, its via-point
+# bound lowered by the overshoot times TORQUE_MARGIN (the 5 % back-off held on five grasps; a scenario II flat spin
+# peaked 0.51 N·m above its via points, 10.013 N·m against the 10 N·m limit)
+TORQUE_ROUNDS = 2
+TORQUE_MARGIN = 0.98
+
 
 def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None = None,
                         max_iterations: int | None = None, screen_iterations: int | None = None,
@@ -39,7 +45,16 @@ def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_p
     and no further one starts (status ``Out_Of_Time``).
     """
     if warm_params is not None or problem.coarse_via_points == 0:
-        return solve_once(problem, grasp, warm_params, max_iterations, deadline)
+        solved = solve_once(problem, grasp, warm_params, max_iterations, deadline)
+    else:
+        solved = _coarse_to_fine(problem, grasp, max_iterations, screen_iterations, deadline)
+    return _held_between_via_points(problem, grasp, solved, max_iterations, deadline)
+
+
+def _coarse_to_fine(problem: StabilizationProblem, grasp: GraspState, max_iterations: int | None,
+                    screen_iterations: int | None, deadline: Deadline) -> StabilizationSolution:
+    """A cold solve: the coarse NLP from the initial parameters, then the full NLP from its answer (and, should that
+    fail, from the initial parameters), screened when ``screen_iterations`` is given (:func:`solve_stabilization`)."""
     coarse = problem.coarse_problem()
     attempts = [solve_once(coarse, grasp, None, _screened(max_iterations, screen_iterations), deadline)]
     screened_out = screen_iterations is not None and not attempts[0].success
@@ -59,6 +74,32 @@ def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_p
                    else last.status)
 
 
+def _held_between_via_points(problem: StabilizationProblem, grasp: GraspState, solved: StabilizationSolution,
+                             max_iterations: int | None, deadline: Deadline) -> StabilizationSolution:
+    """``solved``, once its grasp torque holds the limit between the via points too (the NLP's own model at
+    :data:`~planner.phases.stabilization.DENSE_FACTOR` times as many instants); where it peaks above, the solve is
+    repeated warm with the via-point torque bound lowered by the overshoot, up to :data:`TORQUE_ROUNDS` times; still
+    above, it is a failure (status ``Torque_Over_Limit_Between_Via_Points``)."""
+    limit = problem.torque_limit
+    if not np.isfinite(limit):
+        return solved
+    scale, par = 1.0, problem.parameters(grasp)
+    for round_ in range(TORQUE_ROUNDS + 1):
+        if not solved.success:
+            return solved
+        peak = float(np.abs(np.asarray(problem.dense_torques()(solved.params, par))).max())
+        if peak <= limit:
+            return solved
+        left = None if max_iterations is None else max_iterations - solved.iterations
+        if round_ == TORQUE_ROUNDS or (left is not None and left <= 0) or deadline.passed:
+            break
+        scale *= TORQUE_MARGIN * limit / peak
+        again = solve_once(problem, grasp, solved.params, left, deadline, torque_scale=scale)
+        solved = replace(again, iterations=again.iterations + solved.iterations,
+                         solve_time_s=again.solve_time_s + solved.solve_time_s)
+    return replace(solved, success=False, status=SolveOutcome.TORQUE_BETWEEN_VIA_POINTS)
+
+
 def _screened(max_iterations: int | None, screen_iterations: int | None) -> int | None:
     """One solve's iteration budget: what is left of the whole budget, or the screen's if smaller (None: neither)."""
     budgets = [b for b in (max_iterations, screen_iterations) if b is not None]
@@ -66,16 +107,24 @@ def _screened(max_iterations: int | None, screen_iterations: int | None) -> int 
 
 
 def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None,
-               max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE) -> StabilizationSolution:
-    """One IPOPT run of ``problem`` from ``warm_params`` (None: its initial parameters)."""
+               max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE,
+               torque_scale: float = 1.0) -> StabilizationSolution:
+    """One IPOPT run of ``problem`` from ``warm_params`` (None: its initial parameters), its via-point torque bounds
+    multiplied by ``torque_scale``."""
     par = problem.parameters(grasp)
     w0 = problem.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
     if problem.n_extra:
         M0, _, _ = problem.outputs(w0, par)
         w0 = np.concatenate([w0, [float(np.abs(np.asarray(M0)).max())]])
-    problem.stop.arm(problem.lbg, problem.ubg, problem.feasibility_only, max_iterations, deadline)
+    lbg, ubg = problem.lbg, problem.ubg
+    if torque_scale != 1.0:
+        rows = problem.constraints.slice("grasp_torque")
+        lbg, ubg = lbg.copy(), ubg.copy()
+        lbg[rows] *= torque_scale
+        ubg[rows] *= torque_scale
+    problem.stop.arm(lbg, ubg, problem.feasibility_only, max_iterations, deadline)
     t0 = time.perf_counter()
-    sol = problem.solver(x0=w0, p=par, lbx=problem.lbw, ubx=problem.ubw, lbg=problem.lbg, ubg=problem.ubg)
+    sol = problem.solver(x0=w0, p=par, lbx=problem.lbw, ubx=problem.ubw, lbg=lbg, ubg=ubg)
     elapsed = time.perf_counter() - t0
     stats = problem.solver.stats()
     P = np.asarray(sol["x"]).ravel()[problem.decision.slice("spline_params")]

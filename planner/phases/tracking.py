@@ -55,6 +55,7 @@ class TrackingResult:
     relative_velocity_m_s: float
     relative_angular_velocity_rad_s: float
     peak_rate_demand: float = 0.0  # max over the phase of |q̇ asked by the law| / q̇_max, before the cap
+    peak_demand_time_s: float = 0.0  # when that peak was asked [s since the start of tracking]
 
 
 def free_axis_angle(R_world_grasp: Array, R_world_ee: Array, axis: Array | None) -> float:
@@ -100,11 +101,12 @@ class TrackingController:
         eps = 1e-4
         qd_back, _ = law.rates(T - eps, qs[-1] - eps * qds[-1], xs[-1] - eps * xd_end)
         qdd_end = (qds[-1] - qd_back) / eps
-        return _result(law.kinematics(qs[-1], xs[-1]), motion, desired, ts, qs, qds, xs, qdd_end, law.peak_demand)
+        return _result(law.kinematics(qs[-1], xs[-1]), motion, desired, ts, qs, qds, xs, qdd_end,
+                       (law.peak_demand, law.peak_time_s))
 
 
 def _result(at: KinematicsAt, motion: TargetMotion, desired: _DesiredPose, ts: Array, qs: Array, qds: Array, xs: Array,
-            qdd_end: Array, peak_demand: float) -> TrackingResult:
+            qdd_end: Array, peak_demand: tuple[float, float]) -> TrackingResult:
     """The trajectory with the relative pose and twist of the ee (kinematics ``at`` the end) and the grasp frame
     at the grasp instant."""
     R_ee, p_ee = at.R_world_ee, at.p_world_ee_m
@@ -119,7 +121,8 @@ def _result(at: KinematicsAt, motion: TargetMotion, desired: _DesiredPose, ts: A
         orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ desired.R_free).T @ R_ee))),
         relative_velocity_m_s=float(np.linalg.norm(v_rel)),
         relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
-        peak_rate_demand=peak_demand,
+        peak_rate_demand=peak_demand[0],
+        peak_demand_time_s=peak_demand[1],
     )
 
 
@@ -197,6 +200,7 @@ class _RateLaw:
         self.qd_max = sc.robot.qd_max
         self.identity = np.eye(len(self.qd_max))  # the null-space projector's I
         self.peak_demand = 0.0  # max over the calls of |q̇ asked by the law| / q̇_max, before the cap
+        self.peak_time_s = 0.0  # the phase time of that call [s]
         # what depends on the time alone, at every RK4 stage in one batch (the integration asks for each twice)
         stages = list(dict.fromkeys(desired.stages))
         refs = [None] * len(stages) if q_ref is None else zip(q_ref(stages), self.q_ref_d(stages), strict=True)
@@ -221,7 +225,10 @@ class _RateLaw:
         if ref is not None:
             null = null + ref[1] + self.K * (ref[0] - q)
         qd += (self.identity - J_pinv @ J) @ (ramp * null)
+        peak_before = self.peak_demand
         qd = self._capped(qd)
+        if self.peak_demand > peak_before:
+            self.peak_time_s = t
         return qd, self.kinematics.base_pose_rate(q, qd, x)
 
     def _capped(self, qd: Array) -> Array:

@@ -25,6 +25,12 @@ def smoothstep5(s: ArrayLike) -> NDArray[np.float64]:
     return s**3 * (10 - 15 * s + 6 * s**2)
 
 
+def node_segment(t_s: float, tracking_s: float) -> int:
+    """Index of the tracking segment (between consecutive :data:`TRACKING_NODES`, the first from the start) that
+    holds phase time ``t_s`` [s]."""
+    return next((i for i, f in enumerate(TRACKING_NODES) if t_s <= f * tracking_s), len(TRACKING_NODES) - 1)
+
+
 def backoff_m(backoff0_m: float, t_s: float, tracking_s: float) -> float:
     """Remaining back-off distance [m] at time ``t_s`` into the tracking phase."""
     return float(backoff0_m * (1.0 - smoothstep5(t_s / (CLOSE_END * tracking_s))))

@@ -57,3 +57,36 @@ def test_an_iteration_budget_ends_the_solve_and_is_shared_by_the_starts(scenario
     again = solve_approach(problem, state)
     assert again.success and again.iterations == free.iterations
     assert (again.params == free.params).all()
+
+
+def test_a_meeting_time_box_keeps_each_scanned_start_near_its_guess(scenario_and_problem):
+    """The grasp search's retries box the start delay around their guess's (planner.plan_grasps): the solve from
+    each of the next guesses ends within the box of that guess, so the retries reach grasps of their own."""
+    from planner.phases.approach_guess import initial_guesses
+
+    sc, problem = scenario_and_problem
+    state = sc.target_state.as_state()
+    guesses = initial_guesses(sc, problem.spline, state, 3)
+    solved = [solve_approach(problem, state, max_starts=3, skip_guesses=skip, meeting_time_box_s=3.0)
+              for skip in (1, 2)]
+    assert all(s.success for s in solved)
+    for boxed in solved:
+        assert abs(boxed.start_delay_s - guesses[boxed.start_guess].start_delay_s) <= 3.0 + 1e-9
+    delays = [g.start_delay_s for g in guesses]
+    assert min(abs(a - b) for i, a in enumerate(delays) for b in delays[i + 1:]) >= 6.0  # the boxes do not overlap
+
+
+def test_a_cold_start_past_its_iterations_gives_way_to_the_next_guess(scenario_and_problem, monkeypatch):
+    """Each start from a scanned guess gets COLD_START_ITERATIONS; past them the next guess is tried (a plan's whole
+    budget is not spent on one start), and the plan's own budget still ends everything at once."""
+    import planner.phases.approach_solve as approach_solve_module
+
+    sc, problem = scenario_and_problem
+    state = sc.target_state.as_state()
+    monkeypatch.setattr(approach_solve_module, "COLD_START_ITERATIONS", 2)
+    capped = solve_approach(problem, state, max_starts=3)
+    assert not capped.success and capped.status == "Iteration_Budget_Exhausted"
+    assert capped.start_guess == 2  # every guess was tried
+    assert 6 <= capped.iterations <= 9  # 2 each (a restoration-phase start calls back once more)
+    monkeypatch.setattr(approach_solve_module, "COLD_START_ITERATIONS", 150)
+    assert solve_approach(problem, state, max_starts=3).success

@@ -59,6 +59,11 @@ def grasp(scenario_II) -> GraspState:
     return GraspState(q, qd, np.zeros(7), x_base, h_world, T_ee_target)
 
 
+def _without_dense_check(monkeypatch):
+    """Stand-in solves return made-up parameters: the torque check between via points is left out of their flow."""
+    monkeypatch.setattr(stabilization_solve, "_held_between_via_points", lambda problem, grasp, solved, *a: solved)
+
+
 @pytest.fixture(scope="module")
 def problem(scenario_II, grasp) -> StabilizationProblem:
     return StabilizationProblem(scenario_II)
@@ -120,6 +125,7 @@ def test_cold_solve_falls_back_to_the_full_nlp_when_the_warm_solve_fails(problem
         return sol
 
     monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    _without_dense_check(monkeypatch)
     sol = solve_stabilization(problem, grasp)
     assert [is_full for is_full, _ in calls] == [False, True, True]
     assert calls[0][1] is None and calls[2][1] is None
@@ -141,6 +147,7 @@ def test_an_iteration_budget_is_shared_by_the_coarse_and_full_solves(problem, gr
                        if max_iterations <= 70 else "Infeasible_Problem_Detected")
 
     monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    _without_dense_check(monkeypatch)
     sol = solve_stabilization(problem, grasp, max_iterations=120)
     assert calls == [120, 50]  # coarse: 70 of 120; full from the coarse answer: the 50 left; then nothing
     assert sol.iterations == 120 and not sol.success and sol.status == "Iteration_Budget_Exhausted"
@@ -154,6 +161,7 @@ def test_warm_solve_skips_the_coarse_problem(problem, grasp, monkeypatch):
         return "answer"
 
     monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+    _without_dense_check(monkeypatch)
     assert solve_stabilization(problem, grasp, problem.initial_params(grasp), max_iterations=30) == "answer"
     assert calls == [(True, 30)]
 
@@ -181,6 +189,7 @@ def test_a_screen_ends_a_cold_solve_whose_coarse_nlp_is_not_feasible_within_it(p
                            status="ok" if ok else "Iteration_Budget_Exhausted")
 
         monkeypatch.setattr(stabilization_solve, "solve_once", fake_solve)
+        _without_dense_check(monkeypatch)
         sol = solve_stabilization(problem, grasp, max_iterations=120, screen_iterations=20)
         assert calls == expected
         assert sol.success is (coarse_ok and full_ok)
@@ -225,3 +234,63 @@ def test_the_smooth_stop_of_a_grasp_at_rest_stays_put_and_one_of_a_moving_grasp_
     V = stabilization_vertices(spline, grasp.q, grasp.qd, grasp.qdd, smooth_stop_params(spline, robot, grasp))
     q = spline.evaluate(V, t)
     assert (q >= robot.q_min).all() and (q <= robot.q_max).all()
+
+
+def test_the_dense_torques_hold_the_nlps_own_at_its_via_points(problem, grasp):
+    """The check between via points evaluates the NLP's own model: at the via points (part of the dense set) it
+    gives the NLP's torques to integration accuracy (the dense RK4 takes smaller steps)."""
+    from planner.phases.stabilization import DENSE_FACTOR
+
+    par = problem.parameters(grasp)
+    P = problem.initial_params(grasp)
+    at_via = np.asarray(problem.outputs(P, par)[0]).reshape(-1, 3)
+    T = problem.scenario.phases.stabilization_s
+    times = np.union1d(np.linspace(0.0, T, DENSE_FACTOR * problem.k + 1), problem.via_times_s)
+    dense = np.asarray(problem.dense_torques()(P, par)).reshape(-1, 3)
+    assert dense.shape[0] == len(times)
+    rows = [int(np.argmin(np.abs(times - t))) for t in problem.via_times_s]
+    np.testing.assert_allclose(dense[rows], at_via, atol=1e-6 * max(1.0, np.abs(at_via).max()))
+    assert np.abs(dense).max() >= np.abs(at_via).max()  # a superset of the instants
+
+
+class _OverLimitStandIn:
+    """What the dense check reads of a problem: a torque limit and a dense peak that falls as the bound tightens."""
+
+    def __init__(self, problem, peaks):
+        self.torque_limit = 10.0
+        self.peaks = list(peaks)
+        self.problem = problem
+
+    def parameters(self, grasp):
+        return self.problem.parameters(grasp)
+
+    def dense_torques(self):
+        return lambda P, par: np.array([self.peaks.pop(0)])
+
+
+def test_a_torque_peak_between_via_points_tightens_the_bound_and_resolves(problem, grasp, monkeypatch):
+    scales = []
+
+    def resolve(prob, grasp_, warm, left, deadline, torque_scale=1.0):
+        scales.append(torque_scale)
+        return StabilizationSolution(np.asarray(warm), True, SolveOutcome.FEASIBLE_POINT_FOUND, 3, 0.1, 0.0, 0.0,
+                                     9.0, 0.1)
+
+    monkeypatch.setattr(stabilization_solve, "solve_once", resolve)
+    first = StabilizationSolution(problem.initial_params(grasp), True, SolveOutcome.FEASIBLE_POINT_FOUND, 20, 1.0,
+                                  0.0, 0.0, 9.5, 0.1)
+    held = stabilization_solve._held_between_via_points
+    # 10.5 N·m between via points: one re-solve with the bound × 0.98·10/10.5, then 9.9 N·m holds
+    out = held(_OverLimitStandIn(problem, [10.5, 9.9]), grasp, first, 120, stabilization_solve.NO_DEADLINE)
+    assert out.success and out.iterations == 23
+    assert scales == [pytest.approx(stabilization_solve.TORQUE_MARGIN * 10.0 / 10.5)]
+    # still above after every round: a failure the grasp search moves on from
+    scales.clear()
+    peaks = [10.5] * (stabilization_solve.TORQUE_ROUNDS + 1)
+    out = held(_OverLimitStandIn(problem, peaks), grasp, first, 120, stabilization_solve.NO_DEADLINE)
+    assert not out.success and out.status == SolveOutcome.TORQUE_BETWEEN_VIA_POINTS
+    assert len(scales) == stabilization_solve.TORQUE_ROUNDS
+    # within the limit at once: the solve as it was, no re-solve
+    scales.clear()
+    assert held(_OverLimitStandIn(problem, [9.99]), grasp, first, 120, stabilization_solve.NO_DEADLINE) is first
+    assert scales == []

@@ -1,0 +1,113 @@
+"""The approach keeps the tracking on one branch of the arm (planner.phases.approach_solve): its end and the
+tracking nodes on one side of every singular joint angle, so the tracking IK never flips the wrist; and a tracking
+rate excess tightens only the segment it happened in (planner.plan_grasps)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planner.config.scenario import load_scenario
+from planner.model.target_state import TargetState
+from planner.phases.approach_solve import SINGULARITY_CLEARANCE_RAD, _one_side_of_singularities, solve_approach
+from planner.phases.tracking_profile import TRACKING_NODES, node_segment
+from planner.plan import Planner
+from planner.plan_grasps import RATE_DEMAND_TOLERATED
+
+SCENARIO_II = Path(__file__).resolve().parents[3] / "configs" / "scenarios" / "scenario_II.toml"
+# a scenario II tumble whose cold approach put its end at q6 = +0.21 and its tracking nodes at q6 < −0.35: the
+# tracking IK crossed q6 = 0 and asked for 16× the joint rate limit there (coverage state, seed 7)
+FLIPPING_STATE = TargetState(np.array([0.976457334196, -0.0803263284169, 0.167796967635, 0.109192184293]),
+                             np.radians([-0.605482367211, 3.24428377497, 0.0373453746682]))
+
+
+@pytest.fixture(scope="module")
+def planner_II():
+    return Planner(load_scenario(SCENARIO_II))
+
+
+def test_the_bounds_follow_the_start_grasp_nodes_side(planner_II):
+    problem = planner_II.approach
+    n, nodes = problem.robot.n_joints, problem.decision.slice("tracking_nodes").start
+    q_end_row = problem.constraints.slice("joint_positions").start + (problem.k - 1) * n
+    for side in (+1.0, -1.0):
+        w0 = np.zeros(problem.n_w)
+        w0[nodes + (len(TRACKING_NODES) - 1) * n + 5] = 0.5 * side  # the grasp node's q6
+        lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
+        lbw, ubw = _one_side_of_singularities(problem, w0, problem.lbw, problem.ubw, lbg, ubg)
+        rows = [nodes + node * n + 5 for node in range(len(TRACKING_NODES))]
+        bound = lbw if side > 0 else ubw
+        g_bound = lbg if side > 0 else ubg
+        assert np.all(bound[rows] == side * SINGULARITY_CLEARANCE_RAD)
+        assert g_bound[q_end_row + 5] == side * SINGULARITY_CLEARANCE_RAD
+        # joints 2 and 4 of the zero start are on the + side; every other bound is the problem's own
+        pitch = [nodes + node * n + j for node in range(len(TRACKING_NODES)) for j in (1, 3)]
+        assert np.all(lbw[pitch] == SINGULARITY_CLEARANCE_RAD)
+        kept = np.setdiff1d(np.arange(problem.n_w), rows + pitch)
+        assert np.array_equal(lbw[kept], problem.lbw[kept]) and np.array_equal(ubw[kept], problem.ubw[kept])
+    assert np.array_equal(problem.lbw, planner_II.approach.lbw)  # the problem's own bounds untouched
+
+
+def test_a_cold_approach_keeps_the_tracking_on_one_branch(planner_II):
+    app = solve_approach(planner_II.approach, FLIPPING_STATE)
+    assert app.success
+    _, tr = planner_II.approach_and_tracking(app, planner_II.motion(FLIPPING_STATE))
+    for s in planner_II.approach.singular_angles:
+        signs = np.sign(tr.q[:, s.joint_index] - s.angle_rad)
+        assert np.all(signs == signs[0]), f"joint {s.joint_index + 1} crossed its singular angle in tracking"
+    # was 16.1× the limit with the crossing; what is left is the blend's pace (1.4×), which the planner's re-solve of
+    # that tracking segment with tighter rate bounds takes down
+    assert tr.peak_rate_demand < 2 * RATE_DEMAND_TOLERATED
+
+
+@pytest.mark.parametrize(("t_s", "segment"), [(0.0, 0), (3.0, 0), (3.0 + 1e-9, 1), (4.0, 1), (4.5, 2), (5.0, 2),
+                                              (6.0, 2)])
+def test_node_segment_of_a_phase_time(t_s, segment):
+    assert TRACKING_NODES == (0.6, 0.8, 1.0)
+    assert node_segment(t_s, 5.0) == segment
+
+
+def test_a_rate_excess_tightens_only_its_own_tracking_segment(planner_II, monkeypatch):
+    from dataclasses import replace as dc_replace
+
+    import planner.plan_grasps as plan_grasps_module
+    from planner.phases.approach_guess import ScanOnDemand
+    from planner.plan_grasps import TIGHTENING_MARGIN, GraspSearch
+
+    state = FLIPPING_STATE
+    app = solve_approach(planner_II.approach, state)
+    scales = []
+
+    def solve(problem, state_, warm, tracking_speed_scale, **options):
+        scales.append(np.array(tracking_speed_scale, dtype=float))
+        return app
+
+    real = planner_II.approach_and_tracking
+    demands = iter([(2.0, 1.0), (1.0, 0.0)])  # 2× the limit 1 s into tracking (the blend), then within the limits
+
+    def tracked(app_, motion):
+        samples, tr = real(app_, motion)
+        peak, at = next(demands)
+        return samples, dc_replace(tr, peak_rate_demand=peak, peak_demand_time_s=at)
+
+    monkeypatch.setattr(plan_grasps_module, "solve_approach", solve)
+    monkeypatch.setattr(planner_II, "approach_and_tracking", tracked)
+    scan = ScanOnDemand(planner_II.scenario, planner_II.approach.spline, state, 3)
+    search = GraspSearch(planner_II, state, None, scan, planner_II.motion(state))
+    search._candidate(app)
+    assert len(scales) == 1  # one re-solve, with the first segment's bounds only scaled
+    assert np.allclose(scales[0], [TIGHTENING_MARGIN / 2.0, 1.0, 1.0])
+    assert "tracking segment 1" in search.notes[0]
+
+
+def test_a_start_delay_just_outside_the_window_is_read_inside_it(planner_II):
+    # IPOPT relaxes bounds by 1e-8: a scenario II flat spin's iterate ended at τ = −9.9e-9 s, and verify refused to
+    # propagate the target to a time before the observation (a traceback, exit 1)
+    from planner.phases.approach_solve import _within_window
+
+    window = planner_II.scenario.phases.max_start_delay_s
+    assert _within_window(planner_II.approach, -9.859211127463265e-09) == 0.0
+    assert _within_window(planner_II.approach, window + 1e-8) == window
+    assert _within_window(planner_II.approach, 12.5) == 12.5
