@@ -191,13 +191,13 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
                                        "omega_body_rad_s": state.omega_body_rad_s})
     lbw = problem.lbw if lbw is None else lbw
     ubw = problem.ubw if ubw is None else ubw
-    w0 = np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w])
-    if problem.n_extra:
+    lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
+    lbw, ubw = _one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
+                                          lbg, ubg)
+    w0 = np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w])  # the bounds only narrowed: one clip for both
+    if problem.n_extra:  # the distance slack of Eq. 15 starts at 0
         w0 = np.concatenate([w0, [0.0]])
     t0 = time.perf_counter()
-    lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
-    lbw, ubw = _one_side_of_singularities(problem, w0, lbw, ubw, lbg, ubg)
-    w0 = np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w])
     rates = problem.constraints.slice("tracking_rates")
     per_row = np.repeat(np.broadcast_to(tracking_speed_scale, (len(TRACKING_NODES),)), problem.robot.n_joints)
     lbg[rates] *= per_row

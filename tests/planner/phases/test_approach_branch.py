@@ -111,3 +111,15 @@ def test_a_start_delay_just_outside_the_window_is_read_inside_it(planner_II):
     assert _within_window(planner_II.approach, -9.859211127463265e-09) == 0.0
     assert _within_window(planner_II.approach, window + 1e-8) == window
     assert _within_window(planner_II.approach, 12.5) == 12.5
+
+
+def test_an_approach_with_the_distance_slack_solves_on_one_branch():
+    # Eq. 15 adds a slack variable after w; the branch bounds were clipped against w with the slack appended (a
+    # ValueError at every solve of a *_safety scenario)
+    from planner.phases.approach import ApproachProblem
+
+    sc = load_scenario(SCENARIO_II.with_name("scenario_I_safety.toml"))
+    problem = ApproachProblem(sc)
+    assert problem.n_extra == 1
+    out = solve_approach(problem, sc.target_state.as_state(), max_iterations=2)
+    assert out.status == "Iteration_Budget_Exhausted" and out.iterations in (2, 3)
