@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
 from planner.model.robot import ArmJoint, RobotModel
+from planner.model.rotation import axis_angle_to_matrix
 
 Array = NDArray[np.float64]
 
@@ -34,12 +35,6 @@ class SingularAngle:
     angle_rad: float
 
 
-def _rotation(axis: Array, angle: float) -> Array:
-    """Rotation ``(3, 3)`` about the unit ``axis`` by ``angle`` [rad] (Rodrigues)."""
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-
-
 def collinearity(before: ArmJoint, joint: ArmJoint, after: ArmJoint, angle_rad: float) -> float:
     """Squared sine of the angle between the axes of ``before`` and ``after`` plus the squared distance [m²] of
     ``after``'s origin from ``before``'s axis line, with ``joint`` at ``angle_rad``: zero when the lines coincide.
@@ -48,7 +43,7 @@ def collinearity(before: ArmJoint, joint: ArmJoint, after: ArmJoint, angle_rad: 
     """
     a = before.axis
     T_j = joint.T_parent_joint
-    R = T_j[:3, :3] @ _rotation(joint.axis, angle_rad)
+    R = T_j[:3, :3] @ axis_angle_to_matrix(joint.axis, angle_rad)
     origin = T_j[:3, 3] + R @ after.T_parent_joint[:3, 3]
     direction = R @ after.T_parent_joint[:3, :3] @ after.axis
     return float(np.sum(np.cross(a, direction) ** 2) + np.sum(np.cross(origin, a) ** 2))
@@ -60,16 +55,25 @@ def singular_angles(robot: RobotModel) -> tuple[SingularAngle, ...]:
     joints = robot.joints
     for j in range(1, len(joints) - 1):
         before, joint, after = joints[j - 1], joints[j], joints[j + 1]
-        grid = np.arange(joint.lower_rad, joint.upper_rad + SCAN_STEP_RAD, SCAN_STEP_RAD)
+        count = int(np.ceil((joint.upper_rad - joint.lower_rad) / SCAN_STEP_RAD)) + 1
+        grid = np.linspace(joint.lower_rad, joint.upper_rad, count)  # both limits scanned, nothing beyond them
         values = np.array([collinearity(before, joint, after, a) for a in grid])
         for i in range(len(grid)):
             lo, hi = max(i - 1, 0), min(i + 1, len(grid) - 1)
             if values[i] > min(values[lo], values[hi]) or (i > 0 and values[i] == values[i - 1]):
                 continue  # not a local minimum of the scan (a plateau counts once)
-            # the square root is V-shaped at a root, where the squared sum is flat: Brent's method pins it down
-            best = minimize_scalar(lambda a: np.sqrt(collinearity(before, joint, after, a)),  # noqa: B023
-                                   bounds=(grid[lo], grid[hi]), method="bounded", options={"xatol": 1e-12})
-            if best.fun**2 < COLLINEAR_TOL:
-                angle = float(best.x) if abs(best.x) > SCAN_STEP_RAD * 1e-6 else 0.0  # a zero stays exactly zero
-                found.append(SingularAngle(j, angle))
+            angle = _refined_root(before, joint, after, grid[lo], grid[hi])
+            if collinearity(before, joint, after, angle) < COLLINEAR_TOL:
+                found.append(SingularAngle(j, angle if abs(angle) > SCAN_STEP_RAD * 1e-6 else 0.0))  # 0 stays 0
     return tuple(found)
+
+
+def _refined_root(before: ArmJoint, joint: ArmJoint, after: ArmJoint, lo_rad: float, hi_rad: float) -> float:
+    """The angle in [lo_rad, hi_rad] where the neighbours come closest to collinear: Brent's method on the square root
+    of :func:`collinearity` (V-shaped at a root, where the squared sum is flat), or an end of the interval (a joint
+    limit) when that is closer, which the bounded method only approaches."""
+    def distance(angle: float) -> float:
+        return float(np.sqrt(collinearity(before, joint, after, angle)))
+
+    best = minimize_scalar(distance, bounds=(lo_rad, hi_rad), method="bounded", options={"xatol": 1e-12})
+    return float(min((best.x, lo_rad, hi_rad), key=distance))

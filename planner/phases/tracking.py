@@ -30,7 +30,7 @@ from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.rotation import axis_angle_to_matrix
 from planner.model.target import TargetMotion
-from planner.phases.tracking_kinematics import KinematicsAt, TrackingKinematics
+from planner.phases.tracking_kinematics import TrackingKinematics
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend, gain_ramp
 
 Array = NDArray[np.float64]
@@ -101,14 +101,14 @@ class TrackingController:
         eps = 1e-4
         qd_back, _ = law.rates(T - eps, qs[-1] - eps * qds[-1], xs[-1] - eps * xd_end)
         qdd_end = (qds[-1] - qd_back) / eps
-        return _result(law.kinematics(qs[-1], xs[-1]), motion, desired, ts, qs, qds, xs, qdd_end,
-                       (law.peak_demand, law.peak_time_s))
+        return _result(law, motion, desired, ts, qs, qds, xs, qdd_end)
 
 
-def _result(at: KinematicsAt, motion: TargetMotion, desired: _DesiredPose, ts: Array, qs: Array, qds: Array, xs: Array,
-            qdd_end: Array, peak_demand: tuple[float, float]) -> TrackingResult:
-    """The trajectory with the relative pose and twist of the ee (kinematics ``at`` the end) and the grasp frame
-    at the grasp instant."""
+def _result(law: _RateLaw, motion: TargetMotion, desired: _DesiredPose, ts: Array, qs: Array, qds: Array, xs: Array,
+            qdd_end: Array) -> TrackingResult:
+    """The trajectory with the relative pose and twist of the ee and the grasp frame at the grasp instant, and the
+    law's peak rate demand."""
+    at = law.kinematics(qs[-1], xs[-1])
     R_ee, p_ee = at.R_world_ee, at.p_world_ee_m
     R_g, p_g = (a[0] for a in motion.grasp_pose(ts[-1]))
     v_g, w_g = (a[0] for a in motion.grasp_twist(ts[-1]))
@@ -121,8 +121,8 @@ def _result(at: KinematicsAt, motion: TargetMotion, desired: _DesiredPose, ts: A
         orientation_error_rad=float(np.linalg.norm(pin.log3((R_g @ desired.R_free).T @ R_ee))),
         relative_velocity_m_s=float(np.linalg.norm(v_rel)),
         relative_angular_velocity_rad_s=float(np.linalg.norm(twist_ee[3:] - w_g)),
-        peak_rate_demand=peak_demand[0],
-        peak_demand_time_s=peak_demand[1],
+        peak_rate_demand=law.peak_demand,
+        peak_demand_time_s=law.peak_time_s,
     )
 
 

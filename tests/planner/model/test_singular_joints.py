@@ -59,12 +59,12 @@ def test_joints_with_parallel_but_offset_neighbours_are_not_singular(robot):
     assert 2 not in [s.joint_index for s in singular_angles(robot)]
 
 
-def _joint(axis, rotation_about_x: float = 0.0, offset=(0.0, 0.0, 0.3)) -> ArmJoint:
+def _joint(axis, rotation_about_x: float = 0.0, offset=(0.0, 0.0, 0.3), limits=(-2.5, 2.5)) -> ArmJoint:
     T = np.eye(4)
     c, s = np.cos(rotation_about_x), np.sin(rotation_about_x)
     T[:3, :3] = [[1, 0, 0], [0, c, -s], [0, s, c]]
     T[:3, 3] = offset
-    return ArmJoint("j", T, np.asarray(axis, dtype=float), -2.5, 2.5, 1.0)
+    return ArmJoint("j", T, np.asarray(axis, dtype=float), *limits, 1.0)
 
 
 def test_a_tilted_placement_moves_the_singular_angle_off_zero():
@@ -92,3 +92,24 @@ def test_a_joint_that_never_aligns_its_neighbours_has_none():
         joints = (before, joint, after)
 
     assert singular_angles(Chain()) == ()
+
+
+class _Chain:
+    """What singular_angles reads of a robot: its joints."""
+
+    def __init__(self, *joints: ArmJoint) -> None:
+        self.joints = joints
+
+
+def _tilted_chain(middle_limits) -> _Chain:
+    """The z-x-z chain above (singular at −0.5 rad), its middle joint limited to ``middle_limits``."""
+    along_tilted_z = (0.0, -0.3 * np.sin(0.5), 0.3 * np.cos(0.5))
+    return _Chain(_joint([0, 0, 1]), _joint([1, 0, 0], limits=middle_limits),
+                  _joint([0, 0, 1], rotation_about_x=0.5, offset=along_tilted_z))
+
+
+def test_a_singular_angle_at_a_joint_limit_is_found_and_one_beyond_it_is_not():
+    at_limit = singular_angles(_tilted_chain((-0.5, 2.5)))
+    assert len(at_limit) == 1 and at_limit[0].angle_rad == pytest.approx(-0.5, abs=1e-9)
+    assert singular_angles(_tilted_chain((-0.5 + 1e-3, 2.5))) == ()  # a milliradian beyond the range: not reachable
+    assert singular_angles(_tilted_chain((-2.5, -0.5 - 1e-3))) == ()

@@ -123,3 +123,30 @@ def test_an_approach_with_the_distance_slack_solves_on_one_branch():
     assert problem.n_extra == 1
     out = solve_approach(problem, sc.target_state.as_state(), max_iterations=2)
     assert out.status == "Iteration_Budget_Exhausted" and out.iterations in (2, 3)
+
+
+@pytest.mark.parametrize(("guess_s", "avoid", "expected"), [
+    (30.0, (), (27.0, 33.0)),  # the box alone
+    (30.0, (27.5,), (29.5, 33.0)),  # a grasp tried below: kept 2 s above it
+    (30.0, (32.0,), (27.0, 30.0)),  # above, exactly 2 s away: the box ends at the guess
+    (30.0, (31.999,), None),  # closer than 2 s: this guess is the grasp already tried
+    (30.0, (30.0,), None),  # the same meeting time
+    (1.0, (), (0.0, 4.0)),  # at the window's start
+    (89.0, (), (86.0, 90.0)),  # at its end
+    (30.0, (26.0, 34.0), (28.0, 32.0)),  # one tried on each side
+])
+def test_a_retrys_meeting_time_box(planner_II, guess_s, avoid, expected):
+    from planner.phases.approach_solve import _meeting_time_box
+
+    problem = planner_II.approach
+    delay = problem.decision.slice("start_delay_s").start
+    w0 = np.zeros(problem.n_w)
+    w0[delay] = guess_s
+    lbw, ubw = _meeting_time_box(problem, w0, 3.0, avoid)
+    if expected is None:
+        assert lbw is None and ubw is None
+    else:
+        assert (lbw[delay], ubw[delay]) == pytest.approx(expected)
+        others = np.arange(problem.n_w) != delay
+        assert np.array_equal(lbw[:problem.n_w][others], problem.lbw[:problem.n_w][others])
+    assert _meeting_time_box(problem, w0, None, avoid) == (problem.lbw, problem.ubw)  # no box: the problem's own
