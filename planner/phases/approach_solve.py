@@ -43,8 +43,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
                    warm_start: ApproachParameters | ApproachSolution | None = None, max_starts: int = 3,
                    tracking_speed_scale: float | Array = 1.0, skip_guesses: int = 0, max_iterations: int | None = None,
                    scan: ScanOnDemand | None = None, deadline: Deadline = NO_DEADLINE,
-                   meeting_time_box_s: float | None = None,
-                   avoid_start_delays_s: tuple[float, ...] = ()) -> ApproachSolution:
+                   meeting_time_box_s: float | None = None, avoid_start_delays_s: tuple[float, ...] = (),
+                   collision_raise_m: Array | None = None) -> ApproachSolution:
     """Solve ``problem`` for one observed target state.
 
     With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that
@@ -61,6 +61,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each of ``avoid_start_delays_s``
     (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from a
     scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried.
+    ``collision_raise_m`` (the collision rows' order) raises those rows' lower bounds [m]
+    (:mod:`planner.phases.approach_clearance`: where the distance dipped between via points).
     """
     t0 = time.perf_counter()
     warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, max_starts, tracking_speed_scale,
@@ -84,7 +86,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         if lbw is None:
             continue
         result = _solve_once(problem, state, starts[attempt], tracking_speed_scale, lbw, ubw, cold=cold,
-                             max_iterations=None if limit == np.inf else int(limit), deadline=deadline)
+                             max_iterations=None if limit == np.inf else int(limit), deadline=deadline,
+                             collision_raise_m=collision_raise_m)
         if cold:
             result = replace(result, start_guess=skip_guesses + attempt - n_warm)
         iterations += result.iterations
@@ -185,8 +188,10 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
 
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,
                 lbw: Array | None = None, ubw: Array | None = None, cold: bool = False,
-                max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE) -> ApproachSolution:
-    """One IPOPT run from ``w0`` ``(n_w,)``; ``cold``: starting in the restoration phase."""
+                max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE,
+                collision_raise_m: Array | None = None) -> ApproachSolution:
+    """One IPOPT run from ``w0`` ``(n_w,)``; ``cold``: starting in the restoration phase; ``collision_raise_m``: as
+    :func:`solve_approach`'s."""
     p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
     lbw = problem.lbw if lbw is None else lbw
@@ -202,6 +207,8 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     per_row = np.repeat(np.broadcast_to(tracking_speed_scale, (len(TRACKING_NODES),)), problem.robot.n_joints)
     lbg[rates] *= per_row
     ubg[rates] *= per_row
+    if collision_raise_m is not None:
+        lbg[problem.constraints.slice("collision")] += collision_raise_m
     solver = problem.cold_solver if cold else problem.solver
     problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations, deadline=deadline)
     sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
@@ -215,17 +222,21 @@ def _one_side_of_singularities(problem: ApproachProblem, w0: Array, lbw: Array, 
                                ubg: Array) -> tuple[Array, Array]:
     """Bounds ``(lbw, ubw)`` (copies) and, in place, ``lbg``/``ubg`` that keep the approach's end (its last via
     point's joint row) and every tracking node on the side of each singular joint angle
-    (:mod:`planner.model.singular_joints`) where the start ``w0``'s grasp node is, :data:`SINGULARITY_CLEARANCE_RAD`
-    from it: the tracking IK joins them through no singularity."""
+    (:mod:`planner.model.singular_joints`) where the start ``w0``'s tracking nodes are,
+    :data:`SINGULARITY_CLEARANCE_RAD` from it: the tracking IK joins them through no singularity. A joint whose
+    start nodes lie on both sides is left free: forcing a side on a start that crosses moves it by more than the
+    clearance (scenario I's base-pinned start took 587 iterations instead of 18)."""
     lbw, ubw = lbw.copy(), ubw.copy()
     n = problem.robot.n_joints
     nodes = problem.decision.slice("tracking_nodes").start
     q_end_row = problem.constraints.slice("joint_positions").start + (problem.k - 1) * n
     for s in problem.singular_angles:
         j, angle = s.joint_index, s.angle_rad
-        side = 1.0 if w0[nodes + (len(TRACKING_NODES) - 1) * n + j] >= angle else -1.0
         rows = [nodes + node * n + j for node in range(len(TRACKING_NODES))]
-        if side > 0:
+        above = w0[rows] >= angle
+        if above.any() != above.all():
+            continue
+        if above.all():
             lbw[rows] = np.maximum(lbw[rows], angle + SINGULARITY_CLEARANCE_RAD)
             lbg[q_end_row + j] = max(lbg[q_end_row + j], angle + SINGULARITY_CLEARANCE_RAD)
         else:

@@ -34,10 +34,10 @@ def test_the_bounds_follow_the_start_grasp_nodes_side(planner_II):
     q_end_row = problem.constraints.slice("joint_positions").start + (problem.k - 1) * n
     for side in (+1.0, -1.0):
         w0 = np.zeros(problem.n_w)
-        w0[nodes + (len(TRACKING_NODES) - 1) * n + 5] = 0.5 * side  # the grasp node's q6
+        rows = [nodes + node * n + 5 for node in range(len(TRACKING_NODES))]
+        w0[rows] = 0.5 * side  # the tracking nodes' q6
         lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
         lbw, ubw = _one_side_of_singularities(problem, w0, problem.lbw, problem.ubw, lbg, ubg)
-        rows = [nodes + node * n + 5 for node in range(len(TRACKING_NODES))]
         bound = lbw if side > 0 else ubw
         g_bound = lbg if side > 0 else ubg
         assert np.all(bound[rows] == side * SINGULARITY_CLEARANCE_RAD)
@@ -48,6 +48,22 @@ def test_the_bounds_follow_the_start_grasp_nodes_side(planner_II):
         kept = np.setdiff1d(np.arange(problem.n_w), rows + pitch)
         assert np.array_equal(lbw[kept], problem.lbw[kept]) and np.array_equal(ubw[kept], problem.ubw[kept])
     assert np.array_equal(problem.lbw, planner_II.approach.lbw)  # the problem's own bounds untouched
+
+
+@pytest.mark.parametrize("crossing", [(-0.04, 0.26, 0.506), (0.3, 0.0, -1e-9), (-0.5, -0.2, 0.0)])
+def test_a_start_whose_nodes_cross_leaves_that_joint_free(planner_II, crossing):
+    problem = planner_II.approach
+    n, nodes = problem.robot.n_joints, problem.decision.slice("tracking_nodes").start
+    q_end_row = problem.constraints.slice("joint_positions").start + (problem.k - 1) * n
+    w0 = np.full(problem.n_w, 0.7)
+    rows = [nodes + node * n + 5 for node in range(len(TRACKING_NODES))]
+    w0[rows] = crossing  # scenario I's base-pinned start (first case) crosses q6 = 0 between its nodes
+    lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
+    lbw, ubw = _one_side_of_singularities(problem, w0, problem.lbw, problem.ubw, lbg, ubg)
+    assert np.array_equal(lbw[rows], problem.lbw[rows]) and np.array_equal(ubw[rows], problem.ubw[rows])
+    assert lbg[q_end_row + 5] == problem.lbg[q_end_row + 5] and ubg[q_end_row + 5] == problem.ubg[q_end_row + 5]
+    pitch = [nodes + node * n + j for node in range(len(TRACKING_NODES)) for j in (1, 3)]
+    assert np.all(lbw[pitch] == SINGULARITY_CLEARANCE_RAD)  # the other joints' nodes, all at 0.7, are still held
 
 
 def test_a_cold_approach_keeps_the_tracking_on_one_branch(planner_II):
