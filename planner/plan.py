@@ -24,6 +24,7 @@ from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach import ApproachProblem, ApproachSolution
+from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.approach_guess import ReachScan, ScanOnDemand
 from planner.phases.stabilization import (
     GraspState,
@@ -108,9 +109,17 @@ class Planner:
         self.approach = ApproachProblem(scenario, self.ff)
         self.tracking = TrackingController(scenario, self.ff)
         self._stabilization: StabilizationProblem | None = None
+        self._clearance: ApproachClearance | None = None
         self._feasibility: Planner | None = None
         self.stabilization_spline = stabilization_spline(scenario)
         self.build_time_s = time.perf_counter() - t0
+
+    @property
+    def approach_clearance(self) -> ApproachClearance:
+        """The approach's dense clearance check on the NLP's own engine (built on first use)."""
+        if self._clearance is None:
+            self._clearance = ApproachClearance(self.approach)
+        return self._clearance
 
     @property
     def stabilization_problem(self) -> StabilizationProblem:
@@ -163,7 +172,7 @@ class Planner:
             feasibility = copy.copy(self)  # the models, tracking and stabilization do not depend on approach costs
             feasibility.scenario = replace(self.scenario, costs=self.scenario.costs.without_approach_terms())
             feasibility.approach = ApproachProblem(feasibility.scenario, self.ff)
-            feasibility._stabilization, feasibility._feasibility = stabilization, None
+            feasibility._stabilization, feasibility._feasibility, feasibility._clearance = stabilization, None, None
             self._feasibility = feasibility
         return self._feasibility
 
@@ -174,14 +183,15 @@ class Planner:
         if cold and problem.coarse_via_points > 0:
             problem.coarse_problem()
 
-    def simulate(self, state: TargetState, given: PlanParameters, resolve_iterations: int | None = None) -> GraspPlan:
+    def simulate(self, state: TargetState, given: PlanParameters, resolve_iterations: int | None = None,
+                 deadline: Deadline = NO_DEADLINE) -> GraspPlan:
         """The plan that given parameters produce for ``state``, without solving (table queries).
 
         The approach parameters are used as they are; the tracking IK runs from where they end; the
         stabilization parameters are applied to Eq. 24 from the actual grasp state. ``verify`` decides.
         With ``resolve_iterations`` the stabilization is what the flight software would fly once grasped: its NLP
         solved warm from the given parameters at the actual grasp state within that many IPOPT iterations
-        (:meth:`resolved_stabilization`); approach and tracking are the same as without.
+        (:meth:`resolved_stabilization`), ended at ``deadline``; approach and tracking are the same as without.
         """
         t_start = time.perf_counter()
         app, motion = ApproachSolution.given(given.approach), self.motion(state)
@@ -194,19 +204,20 @@ class Planner:
         notes = ["simulated from given parameters"]
         t_stab = time.perf_counter()
         if resolve_iterations is not None:
-            stab, note = self.resolved_stabilization(candidate, stab.params, resolve_iterations)
+            stab, note = self.resolved_stabilization(candidate, stab.params, resolve_iterations, deadline)
             notes.append(note)
         timings = {"approach_s": 0.0, "stabilization_s": time.perf_counter() - t_stab}
         plan = self.assemble(state, candidate, stab, timings, notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
 
-    def resolved_stabilization(self, candidate: GraspCandidate, planned: Array,
-                               max_iterations: int) -> tuple[StabilizationSolution, str]:
-        """The stabilization NLP solved warm from ``planned`` at ``candidate``'s grasp within ``max_iterations``, and
+    def resolved_stabilization(self, candidate: GraspCandidate, planned: Array, max_iterations: int,
+                               deadline: Deadline = NO_DEADLINE) -> tuple[StabilizationSolution, str]:
+        """The stabilization NLP solved warm from ``planned`` at ``candidate``'s grasp within ``max_iterations`` (ended
+        at ``deadline``), and
         a note: its answer when the solve succeeds, else the ``planned`` spline (the flight software flies what it
         has; such a solution keeps the failed solve's status and iterations, with ``success`` False)."""
-        solved = candidate.stabilize(planned, max_iterations)
+        solved = candidate.stabilize(planned, max_iterations, deadline=deadline)
         if solved.success:
             return solved, f"stabilization re-solved warm at the grasp ({solved.iterations} iterations)"
         kept = replace(StabilizationSolution.given(planned), success=False, status=solved.status,

@@ -104,7 +104,7 @@ def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParamet
     if not app.success or deadline.passed or app.cost >= out.cost_end:
         return
     candidate = planner.candidate_from(app, *planner.approach_and_tracking(app, motion), motion)
-    if candidate.tracking.peak_rate_demand > RATE_DEMAND_TOLERATED:
+    if not _trackable(planner, candidate, motion):
         return
     stab = candidate.stabilize(None if warm is None else warm.stabilization_params, STABILIZATION_BUDGET,
                                SCREEN_BUDGET, deadline)
@@ -144,7 +144,7 @@ def _step(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: 
     kept = False
     if app.success:
         candidate = planner.candidate_from(app, *planner.approach_and_tracking(app, motion), motion)
-        if candidate.tracking.peak_rate_demand <= RATE_DEMAND_TOLERATED:
+        if _trackable(planner, candidate, motion):
             stab = candidate.stabilize(out.stabilization.params, STEP_STABILIZATION_ITERATIONS, None, deadline)
             out.timings_s["stabilization_s"] += stab.solve_time_s
             kept = bool(stab.success)
@@ -153,3 +153,13 @@ def _step(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: 
     out.steps_kept += kept
     out.steps_refused += not kept
     return kept
+
+
+def _trackable(planner: PhasePlanner, candidate: GraspCandidate, motion: TargetMotion) -> bool:
+    """True when ``candidate``'s tracking asks for no more than the tolerated joint rates and its approach keeps its
+    clearance between the via points (a costed step is refused otherwise, not repaired: the feasibility plan's grasp
+    stays the answer)."""
+    if candidate.tracking.peak_rate_demand > RATE_DEMAND_TOLERATED:
+        return False
+    _, dips = planner.approach_clearance.raised_bounds(candidate.app, candidate.approach_samples, motion)
+    return not dips

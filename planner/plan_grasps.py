@@ -29,6 +29,7 @@ from planner.model.target import TargetMotion, TargetState
 from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
+from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
 from planner.phases.approach_solve import solve_approach
 from planner.phases.stabilization import (
@@ -85,6 +86,9 @@ class PhasePlanner(Protocol):
 
     @property
     def stabilization_problem(self) -> StabilizationProblem: ...
+
+    @property
+    def approach_clearance(self) -> ApproachClearance: ...
 
     def approach_and_tracking(self, app: ApproachSolution,
                               motion: TargetMotion) -> tuple[PhaseSamples, TrackingResult]: ...
@@ -246,22 +250,24 @@ class GraspSearch:
         return result
 
     def _candidate(self, app: ApproachSolution) -> GraspCandidate:
-        """Approach → tracking (re-solving the approach with tightened tracking rates if the IK asked for
-        too much) → the compound's state at the grasp."""
+        """Approach → tracking (re-solving the approach with tightened tracking rates if the IK asked for too much,
+        or with raised collision bounds where the distance dipped between via points) → the compound's state at the
+        grasp."""
+        raised = None  # this grasp's raised collision bounds [m], kept through its re-solves
         for round_ in range(TIGHTENING_ROUNDS + 1):
             samples, tr = self.planner.approach_and_tracking(app, self.motion)
-            ratio = tr.peak_rate_demand
-            if ratio <= RATE_DEMAND_TOLERATED or round_ == TIGHTENING_ROUNDS or not app.success \
-                    or self.deadline.passed:
+            if round_ == TIGHTENING_ROUNDS or not app.success or self.deadline.passed:
                 break
-            segment = node_segment(tr.peak_demand_time_s, self.planner.scenario.phases.tracking_s)
-            self.tracking_speed_scale = self.tracking_speed_scale.copy()
-            self.tracking_speed_scale[segment] *= TIGHTENING_MARGIN / ratio
-            self.notes.append(f"tracking joint rate {ratio:.3f}× the limit at {tr.peak_demand_time_s:.2f} s into "
-                              f"tracking: approach re-solved with the rate bounds of tracking segment {segment + 1} "
-                              f"scaled by {self.tracking_speed_scale[segment]:.3f}")
+            if tr.peak_rate_demand > RATE_DEMAND_TOLERATED:
+                self._tighten_rates(tr)
+            else:
+                more = self._raised_clearance(app, samples)
+                if more is None:
+                    break
+                raised = more if raised is None else np.maximum(raised, more)
             # near the grasp whose demand was measured (free, a retry drifted back to a grasp that had failed)
-            retry = self._solve_approach(app.parameters, meeting_time_box_s=MEETING_TIME_BOX_S)
+            retry = self._solve_approach(app.parameters, meeting_time_box_s=MEETING_TIME_BOX_S,
+                                         collision_raise_m=raised)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = accumulated(app, retry)
@@ -269,3 +275,25 @@ class GraspSearch:
                 break
             app = accumulated(retry, app)
         return self.planner.candidate_from(app, samples, tr, self.motion)
+
+    def _tighten_rates(self, tr: TrackingResult) -> None:
+        """Scale the rate bounds of the tracking segment where ``tr``'s demand peaked by the excess, and say so."""
+        ratio = tr.peak_rate_demand
+        segment = node_segment(tr.peak_demand_time_s, self.planner.scenario.phases.tracking_s)
+        self.tracking_speed_scale = self.tracking_speed_scale.copy()
+        self.tracking_speed_scale[segment] *= TIGHTENING_MARGIN / ratio
+        self.notes.append(f"tracking joint rate {ratio:.3f}× the limit at {tr.peak_demand_time_s:.2f} s into "
+                          f"tracking: approach re-solved with the rate bounds of tracking segment {segment + 1} "
+                          f"scaled by {self.tracking_speed_scale[segment]:.3f}")
+
+    def _raised_clearance(self, app: ApproachSolution, samples: PhaseSamples) -> Array | None:
+        """The collision rows' bounds raised where ``app``'s distances dip between via points (and a note), or None
+        when nothing dips (:mod:`planner.phases.approach_clearance`)."""
+        raised, dips = self.planner.approach_clearance.raised_bounds(app, samples, self.motion)
+        if not dips:
+            return None
+        worst = dips[0]
+        self.notes.append(f"{worst.pair} {worst.distance_m:.4f} m (clearance {worst.clearance_m:.3g} m) between the "
+                          f"approach's via points at t = {app.start_delay_s + worst.t_s:.2f} s ({len(dips)} dip(s)): "
+                          f"approach re-solved with those pairs' bounds raised at the via points around them")
+        return raised

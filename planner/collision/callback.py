@@ -115,11 +115,7 @@ class SceneDistanceCallback(ca.Callback):
         if hit is not None:
             self._cache.move_to_end(key)
             return hit
-        blocks = self._blocks(x)
-        T = np.tile(np.eye(4), (self.n_points, self.n_frames, 1, 1))
-        T[:, :, :3, :3] = blocks[:, :, :9].reshape(self.n_points, self.n_frames, 3, 3).swapaxes(2, 3)
-        T[:, :, :3, 3] = blocks[:, :, 9:]
-        sweep = self.scene.sweep({f: T[:, i] for i, f in enumerate(self.frames)})
+        sweep = self.scene.sweep(frame_poses(self._blocks(x), self.frames))
         self._cache[key] = sweep
         if len(self._cache) > SWEEP_CACHE_SIZE:
             self._cache.popitem(last=False)
@@ -168,6 +164,15 @@ class SceneDistanceCallback(ca.Callback):
     def get_jacobian(self, name: str, inames: list, onames: list, opts: dict) -> ca.Function:
         self._jac = _DistanceJacobian(self, name, opts)
         return self._jac
+
+
+def frame_poses(blocks: np.ndarray, frames: Sequence[str]) -> dict[str, np.ndarray]:
+    """Pose blocks ``(n_points, n_frames, 12)`` (:func:`pose_vector` each) as ``frame → (n_points, 4, 4)``."""
+    n_points, n_frames = blocks.shape[:2]
+    T = np.tile(np.eye(4), (n_points, n_frames, 1, 1))
+    T[:, :, :3, :3] = blocks[:, :, :9].reshape(n_points, n_frames, 3, 3).swapaxes(2, 3)
+    T[:, :, :3, 3] = blocks[:, :, 9:]
+    return {f: T[:, i] for i, f in enumerate(frames)}
 
 
 def pose_vector(R: ca.SX | ca.MX | ca.DM, p: ca.SX | ca.MX | ca.DM) -> ca.SX | ca.MX | ca.DM:

@@ -32,14 +32,15 @@ class _Stand:
     def candidate(self, app):
         ok = bool(np.all(np.abs(app.base_offset_m - self.theta0) <= self.stable_m))
         stab = SimpleNamespace(success=ok, params=np.zeros(3), solve_time_s=1.0)
-        return SimpleNamespace(app=app, tracking=SimpleNamespace(peak_rate_demand=1.0),
+        return SimpleNamespace(app=app, tracking=SimpleNamespace(peak_rate_demand=1.0), approach_samples=None,
                                stabilize=lambda warm, budget, screen, deadline: stab)
 
 
 def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE) -> costed.CostDescent:
     monkeypatch.setattr(costed, "solve_approach_near", stand.solve)
     planner = SimpleNamespace(approach=stand.approach, approach_and_tracking=lambda app, motion: (None, None),
-                              candidate_from=lambda app, samples, tr, motion: stand.candidate(app))
+                              candidate_from=lambda app, samples, tr, motion: stand.candidate(app),
+                              approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None, [])))
     start = stand.candidate(SimpleNamespace(base_offset_m=stand.theta0.copy()))
     cost = approach_energy(stand.theta0)
     out = costed.CostDescent(start, SimpleNamespace(params=np.ones(3)), {"approach_s": 0.0, "stabilization_s": 0.0},
@@ -138,3 +139,11 @@ def test_the_feasibility_stage_shares_all_but_the_approach_nlp():
     assert stage.approach is not costed_planner.approach and stage.approach.ff is costed_planner.ff
     assert not stage.scenario.costs.weights_approach and costed_planner.scenario.costs.approach_energy == 1.0
     assert stage.scenario.costs.without_approach_terms() == stage.scenario.costs
+
+
+@pytest.mark.parametrize(("rate", "dips", "kept"), [(1.0, [], True), (1.3, [], False), (1.0, ["a dip"], False)])
+def test_a_costed_grasp_must_track_within_rates_and_clear_between_via_points(rate, dips, kept):
+    planner = SimpleNamespace(approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None,
+                                                                                                            dips)))
+    candidate = SimpleNamespace(app=None, approach_samples=None, tracking=SimpleNamespace(peak_rate_demand=rate))
+    assert costed._trackable(planner, candidate, None) is kept
