@@ -21,6 +21,7 @@ class QuerySource(StrEnum):
     INTERPOLATED = "interpolated"  # the consistent corners of the enclosing cell, averaged
     NEAREST = "nearest"  # the nearest feasible grid point (no feasible corner)
     CORNER = "corner"  # one corner's own plan carried to the state's phase (the interpolated one failed verify)
+    REPAIRED = "repaired"  # the table's plan (interpolated or a corner's) with its stabilization re-solved warm
     REFINED = "refined"  # a solve warm-started from the table's answer
     SOLVED_COLD = "solved cold"  # a solve from scratch (with its retries over grasps)
 

@@ -7,8 +7,10 @@
    (:mod:`lut.query.interpolation`). Without a feasible corner the nearest feasible point of the table is used.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
    actual grasp state) and verified densely.
-4. If the interpolated plan is not feasible, the heaviest corners' own plans (carried to the state's phase) are
-   re-simulated and verified the same way, and the first feasible one is the answer (source ``corner``).
+4. If the interpolated plan is not feasible only from its grasp on, its stabilization is re-solved warm at the grasp
+   it reached, in process (:mod:`lut.query.stabilization_repair`; source ``repaired``). Otherwise, or if that fails,
+   the heaviest corners' own plans (carried to the state's phase) are re-simulated and verified the same way (each
+   repaired so if needed), and the first feasible one is the answer (source ``corner`` or ``repaired``).
 5. If that is not feasible either, or refinement was asked for, a warm-started solve runs in a child process
    within what is left of the time budget (killed at it); a feasible refined plan replaces the
    interpolated one. If there is still no feasible plan, a cold solve gets what is left after that.
@@ -27,6 +29,7 @@ from numpy.typing import NDArray
 from lut.query.interpolation import Candidate, consistent_group, mean_of_group
 from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
+from lut.query.stabilization_repair import stabilization_only
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
 from lut.table.grid import Grid
@@ -41,7 +44,7 @@ from planner.config.scenario import Scenario, load_scenario
 from planner.deadline import Deadline
 from planner.errors import LutgenError
 from planner.model.target import TargetState
-from planner.plan import GraspPlan, Planner
+from planner.plan import STABILIZATION_BUDGET, GraspPlan, Planner
 from planner.plan_parameters import PlanParameters
 from planner.verify.verifier import VerifyReport, verify
 
@@ -138,14 +141,7 @@ class TableQuery:
         source = QuerySource.SOLVED_COLD
         corners = found.corners if found is not None else []
         if found is not None:
-            plan, report = self.simulate_and_verify(state, found.parameters, latency)
-            source = found.source
-            if not report.feasible and found.source is QuerySource.INTERPOLATED and not refine:
-                t0 = time.perf_counter()
-                own = self.corner_plan(state, deadline)
-                latency["corners_s"] = time.perf_counter() - t0
-                if own is not None:
-                    plan, report, corners, source = *own[:2], [own[2]], QuerySource.CORNER
+            plan, report, corners, source = self.table_plan(state, found, deadline, latency, refine)
         # warm from the table's answer first, then cold (with its retries over grasps) in what the budget has left
         attempts = [(None, QuerySource.SOLVED_COLD)]
         if found is not None:
@@ -188,9 +184,32 @@ class TableQuery:
                                               point.costs.get("min_distance_m", float("nan"))))
         return tuple(rows)
 
-    def corner_plan(self, state: TargetState, deadline: Deadline) -> tuple[GraspPlan, VerifyReport, int] | None:
+    def table_plan(self, state: TargetState, found: TableAnswer, deadline: Deadline, latency: dict[str, float],
+                   refine: bool) -> tuple[GraspPlan, VerifyReport, list[int], QuerySource]:
+        """The table's own plan at ``state``: ``found`` re-simulated and verified; unless a refine was asked for and
+        while it is not feasible, its stabilization repaired (:meth:`repaired`), then the heaviest corners' own plans
+        (:meth:`corner_plan`). Returns the plan, its report, the corners it came from and its source."""
+        plan, report = self.simulate_and_verify(state, found.parameters, latency)
+        if report.feasible or refine:
+            return plan, report, found.corners, found.source
+        t0 = time.perf_counter()
+        fixed = self.repaired(state, found.parameters, report, deadline)
+        latency["repair_s"] = time.perf_counter() - t0
+        if fixed is not None:
+            return *fixed, found.corners, QuerySource.REPAIRED
+        if found.source is QuerySource.INTERPOLATED:
+            t0 = time.perf_counter()
+            own = self.corner_plan(state, deadline)
+            latency["corners_s"] = time.perf_counter() - t0
+            if own is not None:
+                return own
+        return plan, report, found.corners, found.source
+
+    def corner_plan(self, state: TargetState,
+                    deadline: Deadline) -> tuple[GraspPlan, VerifyReport, list[int], QuerySource] | None:
         """The first of the cell's :data:`CORNER_TRIES` heaviest feasible corners whose own plan, carried to
-        ``state``'s phase, verifies feasible there: ``(plan, report, corner)``; ``None`` if none does in time.
+        ``state``'s phase, verifies feasible there, as it is (source ``corner``) or with its stabilization repaired
+        (``repaired``): ``(plan, report, [corner], source)``; ``None`` if none does in time.
 
         Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
         in different families of solutions may collide or miss the grasp.
@@ -200,22 +219,43 @@ class TableQuery:
                 return None
             plan, report = self.simulate_and_verify(state, candidate.parameters, {})
             if report.feasible:
-                return plan, report, candidate.corner
+                return plan, report, [candidate.corner], QuerySource.CORNER
+            fixed = self.repaired(state, candidate.parameters, report, deadline)
+            if fixed is not None:
+                return *fixed, [candidate.corner], QuerySource.REPAIRED
         return None
+
+    def repaired(self, state: TargetState, parameters: PlanParameters, report: VerifyReport,
+                 deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:
+        """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
+        :data:`~planner.plan.STABILIZATION_BUDGET` iterations, ended :data:`FINISH_RESERVE_S` before ``deadline``),
+        when ``report`` (its verification) failed only from the grasp on and the repair verifies feasible; else None.
+        """
+        if not stabilization_only(report) or deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
+            return None
+        plan = self.planner.simulate(state, self._in_window(state, parameters), STABILIZATION_BUDGET,
+                                     deadline.earlier(FINISH_RESERVE_S))
+        if not plan.stabilization.success:
+            return None
+        repaired = verify(plan)
+        return (plan, repaired) if repaired.feasible else None
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:
         """The plan of ``parameters`` re-simulated at ``state`` (start delay wrapped into the window), verified."""
         t0 = time.perf_counter()
-        rate = float(np.linalg.norm(state.omega_body_rad_s))
-        given = parameters.shifted_in_time(0.0, 2 * np.pi / rate if rate > 0 else None,
-                                           self.scenario.phases.max_start_delay_s)
-        plan = self.planner.simulate(state, given)
+        plan = self.planner.simulate(state, self._in_window(state, parameters))
         latency["simulate_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         report = verify(plan)
         latency["verify_s"] = time.perf_counter() - t0
         return plan, report
+
+    def _in_window(self, state: TargetState, parameters: PlanParameters) -> PlanParameters:
+        """``parameters`` with the start delay wrapped into the scenario's window by whole spin periods."""
+        rate = float(np.linalg.norm(state.omega_body_rad_s))
+        return parameters.shifted_in_time(0.0, 2 * np.pi / rate if rate > 0 else None,
+                                          self.scenario.phases.max_start_delay_s)
 
     def refine(self, state: TargetState, warm: PlanParameters | None, budget_s: float) -> PointResult:
         """A solve warm-started from ``warm`` (cold without) in a child process with a hard time limit [s].

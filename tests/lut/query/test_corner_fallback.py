@@ -1,6 +1,7 @@
-"""A query whose interpolated plan fails verification tries its heaviest corners' own plans before any solve
-(issue 21): the first that verifies is the answer, at most ``CORNER_TRIES`` are tried, and an asked-for refine
-skips them. The planner is replaced by a stand-in whose verdict depends on which parameters it is given."""
+"""A query whose interpolated plan fails verification tries to repair its stabilization, then its heaviest corners'
+own plans (each repaired if need be) before any solve (issue 21): the first that verifies is the answer, at most
+``CORNER_TRIES`` corners are tried, and an asked-for refine skips them all. The planner is replaced by a stand-in
+whose verdict depends on which parameters it is given (and, for a repair, on the plan it repairs)."""
 
 from __future__ import annotations
 
@@ -31,8 +32,10 @@ def opened() -> TableQuery:
     return TableQuery(GOLDEN)
 
 
-def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: set[int]) -> list:
-    """Corners with these weights; a plan verifies iff it is one of ``feasible``'s own. Returns the tried order."""
+def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: set[int],
+              repairable: frozenset = frozenset()) -> list:
+    """Corners with these weights; a plan verifies iff it is one of ``feasible``'s own, its repair iff it is one of
+    ``repairable``'s ("interpolated" for the interpolated plan). Returns the tried order."""
     candidates = [Candidate(c, w, tq.points[c].parameters) for c, w in weights.items()]
     owner = {id(c.parameters): c.corner for c in candidates}
     tried: list = []
@@ -42,12 +45,18 @@ def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: 
         tried.append(corner)
         return object(), _Report(corner in feasible)
 
+    def repaired(state, parameters, report, deadline):
+        corner = owner.get(id(parameters), "interpolated")
+        tried.append(f"repair {corner}")
+        return (object(), _Report(True)) if corner in repairable else None
+
     def refine(state, warm, budget_s):
         tried.append("refine" if warm is not None else "cold")
         return PointResult(-1, PointStatus.FAILED, "stand-in: no solve")
 
     monkeypatch.setattr(tq, "corner_candidates", lambda state: candidates)
     monkeypatch.setattr(tq, "simulate_and_verify", simulate_and_verify)
+    monkeypatch.setattr(tq, "repaired", repaired)
     monkeypatch.setattr(tq, "refine", refine)
     return tried
 
@@ -55,7 +64,7 @@ def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: 
 def test_the_heaviest_corner_that_verifies_is_the_answer_without_a_solve(opened, monkeypatch):
     tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0, 2})
     res = opened.query(STATE, budget_s=100.0)
-    assert tried == ["interpolated", 1, 2]  # by weight; corner 0 would verify too but is never reached
+    assert tried == ["interpolated", "repair interpolated", 1, "repair 1", 2]  # by weight; 0 is never reached
     assert res.source is QuerySource.CORNER and res.corners_used == [2] and res.report.feasible
     assert "corners_s" in res.latency_s and "refine_s" not in res.latency_s
 
@@ -63,8 +72,8 @@ def test_the_heaviest_corner_that_verifies_is_the_answer_without_a_solve(opened,
 def test_only_corner_tries_are_made_then_the_solves_run(opened, monkeypatch):
     tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0})
     res = opened.query(STATE, budget_s=100.0)
-    assert tried[:3] == ["interpolated", 1, 2] and tq_module.CORNER_TRIES == 2
-    assert tried[3:] == ["refine", "cold"]  # warm from the interpolation, then cold: both give nothing here
+    assert tried[:5] == ["interpolated", "repair interpolated", 1, "repair 1", 2] and tq_module.CORNER_TRIES == 2
+    assert tried[5:] == ["repair 2", "refine", "cold"]  # warm from the interpolation, then cold: both give nothing here
     assert res.source is QuerySource.INTERPOLATED and not res.report.feasible
 
 
@@ -72,3 +81,18 @@ def test_an_asked_for_refine_skips_the_corners(opened, monkeypatch):
     tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible={0, 1})
     opened.query(STATE, budget_s=100.0, refine=True)
     assert tried[:2] == ["interpolated", "refine"] and 0 not in tried and 1 not in tried
+
+
+def test_a_repaired_interpolation_is_the_answer_before_any_corner(opened, monkeypatch):
+    tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible={0, 1}, repairable=frozenset({"interpolated"}))
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", "repair interpolated"]
+    assert res.source is QuerySource.REPAIRED and res.corners_used and set(res.corners_used) <= {0, 1}
+    assert "repair_s" in res.latency_s
+
+
+def test_a_corner_is_repaired_when_it_fails_as_it_is(opened, monkeypatch):
+    tried = _stand_in(opened, monkeypatch, {0: 0.2, 1: 0.8}, feasible=set(), repairable=frozenset({1}))
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", "repair interpolated", 1, "repair 1"]
+    assert res.source is QuerySource.REPAIRED and res.corners_used == [1]

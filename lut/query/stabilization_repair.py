@@ -1,0 +1,27 @@
+"""Which failures of a table's plan a warm re-solve of its stabilization alone can repair (issue 21).
+
+A table's plan re-simulated at a state between grid points reaches its grasp through the tracking IK, which closes
+the loop on the true grasp frame; what cannot adapt is the stabilization spline, applied unchanged from a grasp
+state that differs from its corners'. When every failed check lies in the stabilization (from the grasp on), the
+stabilization NLP solved warm from the table's spline at the grasp reached repairs it in a few iterations, in
+process: no approach NLP, no child process. The approach, and with it the plan's cost terms (Eq. 14-16), stay the
+table's.
+"""
+
+from __future__ import annotations
+
+from planner.verify.kinematics import TIME_TOL_S
+from planner.verify.verifier import VerifyReport
+
+# checks that judge the approach, the tracking or the grasp itself: a new stabilization cannot change them
+BEFORE_THE_GRASP = frozenset({"grasp_position", "grasp_orientation", "grasp_velocity", "grasp_angular_velocity",
+                              "momentum_chaser", "join_velocity_approach_tracking", "joint_rate_consistency"})
+
+
+def stabilization_only(report: VerifyReport) -> bool:
+    """True when ``report`` failed and every failed check is a stabilization one whose worst value lies at or after
+    the grasp (a check failing before it as well is caught when the repaired plan is verified)."""
+    failed = [c for c in report.checks.values() if not c.passed]
+    return bool(failed) and all(
+        c.name not in BEFORE_THE_GRASP and c.t_s is not None and c.t_s >= report.t_grasp_s - TIME_TOL_S
+        for c in failed)

@@ -1,0 +1,88 @@
+"""A table plan that fails only from its grasp on is repaired by re-solving its stabilization warm (issue 21): the
+repair keeps the table's approach bit for bit, verifies feasible, and is not attempted when anything before the
+grasp failed. Judged by verify (pinocchio, its own distances), not by the NLP that made the repair."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from lut.query.stabilization_repair import BEFORE_THE_GRASP, stabilization_only
+from lut.query.table_query import TableQuery
+from planner.deadline import Deadline
+from planner.plan_parameters import PlanParameters
+from planner.verify.checks import CheckResult
+
+GOLDEN = Path(__file__).resolve().parents[2] / "data" / "ci_golden.h5"
+T_GRASP = 50.0
+
+
+def _report(*failed: tuple[str, float | None]) -> SimpleNamespace:
+    """A verification report whose only failed checks are ``(name, time of the worst value)``."""
+    checks = {"joint_position": CheckResult("joint_position", 0.0, 1.0, 1.0, True, "rad", "", 10.0)}
+    for name, t_s in failed:
+        checks[name] = CheckResult(name, 2.0, 1.0, -1.0, False, "-", "", t_s)
+    return SimpleNamespace(checks=checks, t_grasp_s=T_GRASP)
+
+
+@pytest.mark.parametrize(("failed", "expected"), [
+    ((("grasp_torque", 60.0),), True),
+    ((("collision", 70.0), ("end_velocity", 95.0)), True),
+    ((("join_velocity_tracking_stabilization", T_GRASP),), True),  # at the grasp instant itself
+    ((("grasp_torque", 60.0), ("collision", 30.0)), False),  # a collision in the approach
+    ((("joint_velocity", T_GRASP - 1e-3),), False),  # a millisecond before the grasp
+    ((("grasp_torque", None),), False),  # no time: cannot tell
+    ((), False),  # nothing failed: nothing to repair
+    *[(((name, T_GRASP),), False) for name in sorted(BEFORE_THE_GRASP)],
+])
+def test_only_failures_from_the_grasp_on_are_repairable(failed, expected):
+    assert stabilization_only(_report(*failed)) is expected
+
+
+@pytest.fixture(scope="module")
+def opened() -> TableQuery:
+    return TableQuery(GOLDEN)
+
+
+def _braking_too_hard(opened: TableQuery):
+    """A golden grid point's state, its plan with the stabilization spline scaled by 0.8 (the grasp torque then
+    exceeds its limit after the grasp only), that plan's verification, and the stored parameters."""
+    point = opened.feasible[1]
+    state = opened.grid.state_at(opened.grid.coordinates(point))
+    stored = opened.points[point].parameters
+    harsh = PlanParameters(stored.approach, 0.8 * np.asarray(stored.stabilization_params))
+    _, report = opened.simulate_and_verify(state, harsh, {})
+    return state, harsh, report, stored
+
+
+def test_a_spline_that_brakes_too_hard_is_re_solved_and_the_approach_kept(opened):
+    state, harsh, report, stored = _braking_too_hard(opened)
+    assert not report.checks["grasp_torque"].passed and stabilization_only(report)
+    fixed = opened.repaired(state, harsh, report, Deadline.after(100.0))
+    assert fixed is not None
+    plan, repaired = fixed
+    assert repaired.feasible and "re-solved warm" in plan.notes[-1]
+    assert np.array_equal(plan.approach.parameters.params, stored.approach.params)
+    assert np.array_equal(plan.approach.parameters.base_offset_m, stored.approach.base_offset_m)
+
+
+def test_a_plan_that_fails_before_its_grasp_is_not_repaired(opened):
+    point = opened.feasible[0]
+    state = opened.grid.state_at(opened.grid.coordinates(point))
+    stored = opened.points[point].parameters
+    # the approach spline's jerk parameters 30 % larger: the joints overspeed 7 s before the grasp
+    rushed = PlanParameters(replace(stored.approach, params=1.3 * stored.approach.params), stored.stabilization_params)
+    _, report = opened.simulate_and_verify(state, rushed, {})
+    velocity = report.checks["joint_velocity"]
+    assert not velocity.passed and velocity.t_s < report.t_grasp_s and not stabilization_only(report)
+    assert opened.repaired(state, rushed, report, Deadline.after(100.0)) is None
+
+
+def test_no_repair_starts_without_the_time_to_finish_it(opened):
+    state, harsh, report, _ = _braking_too_hard(opened)
+    assert stabilization_only(report)
+    assert opened.repaired(state, harsh, report, Deadline.after(3.0)) is None
