@@ -22,7 +22,12 @@ from numpy.typing import NDArray
 from planner.deadline import Deadline
 from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach_guess import ScanOnDemand
-from planner.phases.approach_solve import approach_cost, solve_approach, solve_approach_near
+from planner.phases.approach_solve import (
+    COLD_START_ITERATIONS,
+    approach_cost,
+    solve_approach,
+    solve_approach_near,
+)
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan_grasps import (
     RATE_DEMAND_TOLERATED,
@@ -41,6 +46,9 @@ MAX_STEPS = 8  # trust-region steps after the full one: each is an approach and 
 STEP_APPROACH_ITERATIONS = 100  # the full step with the meeting time kept took 52 (scenario II)
 STEP_STABILIZATION_ITERATIONS = 30  # steps that kept the braking feasible re-solved it in 8-14
 RELATIVE_GAIN_MIN = 1e-4  # a step must lower the cost by this fraction of max(|cost|, 1)
+# the costed approach's own optimum gets at least this many iterations, its base-pinned start included: scenario I
+# flat spins needed 60 (11 pinned + 49 free), at the retry budget's floor, and lost their optimum when cut there
+COSTED_APPROACH_MIN_ITERATIONS = COLD_START_ITERATIONS
 
 
 @dataclass
@@ -99,7 +107,9 @@ def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParamet
     if deadline.passed:
         return
     app = solve_approach(planner.approach, state, None if warm is None else warm.approach, scan=scan,
-                         max_iterations=approach_retry_budget(out.candidate.app.iterations), deadline=deadline)
+                         max_iterations=max(COSTED_APPROACH_MIN_ITERATIONS,
+                                            approach_retry_budget(out.candidate.app.iterations)),
+                         deadline=deadline)
     out.timings_s["approach_s"] += app.solve_time_s
     if not app.success or deadline.passed or app.cost >= out.cost_end:
         return
