@@ -131,7 +131,7 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
     when a step gains nothing, or at ``deadline``."""
     radius = np.inf
     for _ in range(MAX_STEPS + 1):
-        if deadline.passed or radius < MIN_RADIUS_M:
+        if deadline.passed or radius < MIN_RADIUS_M or _at_its_floor(planner, out.cost_end):
             break
         kept = _step(planner, state, motion, out, radius, tracking_speed_scale, deadline)
         if kept is None:  # converged: the cost does not fall inside this radius
@@ -140,6 +140,14 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
             radius = 2 * radius if np.isfinite(radius) else 0.0  # a full step kept is this meeting time's optimum
         else:
             radius = FIRST_RADIUS_M if not np.isfinite(radius) else radius / 2
+
+
+def _at_its_floor(planner: PhasePlanner, cost: float) -> bool:
+    """True when no step can lower ``cost`` by :data:`RELATIVE_GAIN_MIN`: Eq. 16 weighted alone is ≥ 0 (a scenario I
+    optimum is ~1e-9 m²; four refused steps there cost a table point 60 s), the other terms have no floor."""
+    c = planner.scenario.costs
+    only_energy = c.approach_energy > 0 and c.manipulability == 0 and c.min_distance == 0
+    return only_energy and cost < RELATIVE_GAIN_MIN
 
 
 def _step(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent, radius_m: float,

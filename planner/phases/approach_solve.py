@@ -151,9 +151,11 @@ def _base_pinned_first(problem: ApproachProblem, state: TargetState,
     stopping room and the tracking rates hold the base away: solve with the base pinned first; if that
     succeeds, the free solve starts at its optimum.
     """
-    if warm_start is not None or not problem.scenario.costs.approach_energy > 0 or skip_guesses != 0:
+    if not problem.scenario.costs.approach_energy > 0 or skip_guesses != 0:
         return warm_start, None, 0
     pinned = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale, deadline)
+    if warm_start is not None:  # a neighbour's plan ended in a local minimum θ_b(0) ≈ 0.27-0.9 m; kept as a fallback
+        return (pinned if pinned.success else warm_start), None, pinned.iterations
     return (pinned, None, pinned.iterations) if pinned.success else (None, pinned, pinned.iterations)
 
 
@@ -171,9 +173,7 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
     t0 = time.perf_counter()
     gx, gz = problem.scenario.base_offset_guess_m
     pinned = replace(problem.scenario, base_offset_bounds_m=((gx, gx), (gz, gz)))
-    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
-    base = problem.decision.slice("base_offset_m")
-    lbw[base] = ubw[base] = (gx, gz)
+    lbw, ubw = _base_pinned_bounds(problem)
     result, iterations = None, 0
     for g in initial_guesses(pinned, problem.spline, state, max_starts):
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
@@ -184,6 +184,14 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
     if result is None:
         return _no_start(problem, SolveOutcome.NO_PINNED_START, (gx, gz), time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _base_pinned_bounds(problem: ApproachProblem) -> tuple[Array, Array]:
+    """The problem's bounds ``(lbw, ubw)`` (copies) with θ_b(0) fixed at the scenario's base-offset guess."""
+    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
+    lbw[problem.decision.slice("base_offset_m")] = ubw[problem.decision.slice("base_offset_m")] = \
+        problem.scenario.base_offset_guess_m
+    return lbw, ubw
 
 
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,

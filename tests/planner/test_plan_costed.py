@@ -40,7 +40,9 @@ def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE) -> co
     monkeypatch.setattr(costed, "solve_approach_near", stand.solve)
     planner = SimpleNamespace(approach=stand.approach, approach_and_tracking=lambda app, motion: (None, None),
                               candidate_from=lambda app, samples, tr, motion: stand.candidate(app),
-                              approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None, [])))
+                              approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None, [])),
+                              scenario=SimpleNamespace(costs=SimpleNamespace(approach_energy=1.0, manipulability=0.0,
+                                                                             min_distance=0.0)))
     start = stand.candidate(SimpleNamespace(base_offset_m=stand.theta0.copy()))
     cost = approach_energy(stand.theta0)
     out = costed.CostDescent(start, SimpleNamespace(params=np.ones(3)), {"approach_s": 0.0, "stabilization_s": 0.0},
@@ -147,3 +149,14 @@ def test_a_costed_grasp_must_track_within_rates_and_clear_between_via_points(rat
                                                                                                             dips)))
     candidate = SimpleNamespace(app=None, approach_samples=None, tracking=SimpleNamespace(peak_rate_demand=rate))
     assert costed._trackable(planner, candidate, None) is kept
+
+
+@pytest.mark.parametrize(("weights", "cost", "floor"), [
+    ({"approach_energy": 1.0}, 3e-9, True),  # Eq. 16 alone is ≥ 0: nothing left to gain
+    ({"approach_energy": 1.0}, 0.0727, False),
+    ({"approach_energy": 1.0, "manipulability": 1.0}, 3e-9, False),  # −manipulability has no floor
+    ({"min_distance": 1.0}, -0.5, False),
+])
+def test_the_descent_stops_only_where_no_step_can_gain(weights, cost, floor):
+    costs = SimpleNamespace(**({"approach_energy": 0.0, "manipulability": 0.0, "min_distance": 0.0} | weights))
+    assert costed._at_its_floor(SimpleNamespace(scenario=SimpleNamespace(costs=costs)), cost) is floor
