@@ -13,6 +13,9 @@ from __future__ import annotations
 from planner.verify.kinematics import TIME_TOL_S
 from planner.verify.verifier import VerifyReport
 
+# IPOPT iterations a repair gets: the repairs that succeeded took 0-5 (flat_spin_I_energy's off-grid queries), the ones
+# that failed ran to 116-120 (24-32 s each; the demo's query spent 45 s on three of them, 18 s with this cap)
+REPAIR_ITERATIONS = 15
 # checks that judge the approach, the tracking or the grasp itself: a new stabilization cannot change them
 BEFORE_THE_GRASP = frozenset({"grasp_position", "grasp_orientation", "grasp_velocity", "grasp_angular_velocity",
                               "momentum_chaser", "join_velocity_approach_tracking", "joint_rate_consistency"})

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from lut.query.interpolation import Candidate, consistent_group, mean_of_group
 from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
-from lut.query.stabilization_repair import stabilization_only
+from lut.query.stabilization_repair import REPAIR_ITERATIONS, stabilization_only
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
 from lut.table.grid import Grid
@@ -44,7 +44,7 @@ from planner.config.scenario import Scenario, load_scenario
 from planner.deadline import Deadline
 from planner.errors import LutgenError
 from planner.model.target import TargetState
-from planner.plan import STABILIZATION_BUDGET, GraspPlan, Planner
+from planner.plan import GraspPlan, Planner
 from planner.plan_parameters import PlanParameters
 from planner.verify.verifier import VerifyReport, verify
 
@@ -228,12 +228,13 @@ class TableQuery:
     def repaired(self, state: TargetState, parameters: PlanParameters, report: VerifyReport,
                  deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:
         """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
-        :data:`~planner.plan.STABILIZATION_BUDGET` iterations, ended :data:`FINISH_RESERVE_S` before ``deadline``),
+        :data:`~lut.query.stabilization_repair.REPAIR_ITERATIONS` iterations, ended :data:`FINISH_RESERVE_S` before
+        ``deadline``),
         when ``report`` (its verification) failed only from the grasp on and the repair verifies feasible; else None.
         """
         if not stabilization_only(report) or deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
             return None
-        plan = self.planner.simulate(state, self._in_window(state, parameters), STABILIZATION_BUDGET,
+        plan = self.planner.simulate(state, self._in_window(state, parameters), REPAIR_ITERATIONS,
                                      deadline.earlier(FINISH_RESERVE_S))
         if not plan.stabilization.success:
             return None
