@@ -229,9 +229,8 @@ class TableQuery:
                  deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:
         """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
         :data:`~lut.query.stabilization_repair.REPAIR_ITERATIONS` iterations, ended :data:`FINISH_RESERVE_S` before
-        ``deadline``),
-        when ``report`` (its verification) failed only from the grasp on and the repair verifies feasible; else None.
-        """
+        ``deadline``), when ``report`` (its verification) failed only from the grasp on and the repair verifies
+        feasible; else None."""
         if not stabilization_only(report) or deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
             return None
         plan = self.planner.simulate(state, self._in_window(state, parameters), REPAIR_ITERATIONS,

@@ -189,8 +189,8 @@ def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts:
 def _base_pinned_bounds(problem: ApproachProblem) -> tuple[Array, Array]:
     """The problem's bounds ``(lbw, ubw)`` (copies) with θ_b(0) fixed at the scenario's base-offset guess."""
     lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
-    lbw[problem.decision.slice("base_offset_m")] = ubw[problem.decision.slice("base_offset_m")] = \
-        problem.scenario.base_offset_guess_m
+    base = problem.decision.slice("base_offset_m")
+    lbw[base] = ubw[base] = problem.scenario.base_offset_guess_m
     return lbw, ubw
 
 

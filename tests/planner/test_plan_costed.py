@@ -154,6 +154,7 @@ def test_a_costed_grasp_must_track_within_rates_and_clear_between_via_points(rat
 @pytest.mark.parametrize(("weights", "cost", "floor"), [
     ({"approach_energy": 1.0}, 3e-9, True),  # Eq. 16 alone is ≥ 0: nothing left to gain
     ({"approach_energy": 1.0}, 0.0727, False),
+    ({"approach_energy": 1.0}, costed.RELATIVE_GAIN_MIN, False),  # exactly what a step must gain: still tried
     ({"approach_energy": 1.0, "manipulability": 1.0}, 3e-9, False),  # −manipulability has no floor
     ({"min_distance": 1.0}, -0.5, False),
 ])

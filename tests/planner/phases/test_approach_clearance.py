@@ -18,7 +18,6 @@ from lut.output.preview_geometry import chaser_body_poses, pose_matrices
 from planner.collision.layout import TARGET_BODY, scene_layout
 from planner.config.scenario import load_scenario
 from planner.model.target import TargetState
-from planner.nlp import constraint_backoff as backoff
 from planner.phases.approach import ApproachProblem
 from planner.phases.approach_clearance import DIP_TRIGGER_M, ApproachClearance
 from planner.plan_samples import PhaseSamples
@@ -80,8 +79,6 @@ def test_a_dip_between_two_via_points_raises_both_by_its_depth(clearance, monkey
     assert raised[3, 5] == pytest.approx(0.05) and raised[4, 5] == pytest.approx(0.05)
     assert len(dips) == 1 and dips[0].distance_m == 0.0 and dips[0].clearance_m == pytest.approx(0.02)
     assert dips[0].t_s == pytest.approx(0.5 * (via[3] + via[4]), abs=0.01)
-    # raised by the dip's depth, the same dip would end the back-off above the clearance
-    assert 0.05 + raised[3, 5] - 0.05 >= dips[0].clearance_m + backoff.COLLISION_M
 
 
 def test_a_dip_before_the_first_via_point_raises_only_that_one(clearance, monkeypatch):
@@ -102,6 +99,10 @@ def test_just_above_the_clearance_still_counts_and_a_clear_path_raises_nothing(c
     assert len(dips) == 1 and raised[9, 7] == pytest.approx(0.05 - near)
     raised, dips = _dipped(clearance, monkeypatch, pair=7, t_dip=0.5 * (via[9] + via[10]), d_dip=0.045)
     assert dips == [] and not raised.any()
+    # exactly at the trigger is not a dip (strict), a nanometre below it is
+    at = clearance.clearance_m[7] + DIP_TRIGGER_M
+    assert _dipped(clearance, monkeypatch, pair=7, t_dip=0.5 * (via[9] + via[10]), d_dip=at)[1] == []
+    assert len(_dipped(clearance, monkeypatch, pair=7, t_dip=0.5 * (via[9] + via[10]), d_dip=at - 1e-9)[1]) == 1
 
 
 def test_the_tracking_nodes_rows_are_never_raised(clearance, monkeypatch):
