@@ -3,7 +3,9 @@
 Corners in different local minima meet the target at different times; averaging them would give a plan
 that meets it at neither. So the corners' start delays, carried to the query's phase by the flat-spin
 symmetry and taken on the circle of the spin period, must agree within :data:`CONSISTENT_DELAY_S`; the
-group of agreeing corners with the largest weight is averaged (docs/table.md, Query).
+group of agreeing corners with the largest weight is averaged (docs/table.md, Query). In a table of optimal
+plans only the corners at the cell's lowest cost take part (:func:`cheapest`): a corner left in a local minimum
+would pull the average off the optimum its neighbours hold.
 """
 
 from __future__ import annotations
@@ -16,6 +18,10 @@ import numpy as np
 from planner.plan_parameters import PlanParameters, circular_gap
 
 CONSISTENT_DELAY_S = 3.0  # corners whose carried start delays differ more are not averaged [s]
+# corners whose weighted cost (Eq. 14-16) is within the larger of these of the cell's lowest are at its optimum: 1e-4 in
+# the cost's units is Eq. 16 for a base offset of 1 cm (below what relative navigation resolves), 5 % is issue 21's bar
+SAME_COST_ABS = 1e-4
+SAME_COST_REL = 0.05
 
 
 @dataclass(frozen=True)
@@ -25,6 +31,7 @@ class Candidate:
     corner: int
     weight: float
     parameters: PlanParameters
+    cost: float = 0.0  # the scenario's weighted cost of the corner's plan (0: a feasibility-only table)
 
     @property
     def start_delay_s(self) -> float:
@@ -40,6 +47,16 @@ def consistent_group(candidates: Sequence[Candidate], period_s: float) -> list[C
         if sum(c.weight for c in group) > sum(c.weight for c in best):
             best = group
     return best
+
+
+def cheapest(candidates: Sequence[Candidate]) -> list[Candidate]:
+    """The candidates whose cost is within :data:`SAME_COST_ABS` or :data:`SAME_COST_REL` of the lowest (all of
+    them when a cost is unknown, NaN)."""
+    costs = np.array([c.cost for c in candidates], dtype=float)
+    if costs.size == 0 or not np.isfinite(costs).all():
+        return list(candidates)
+    best = float(costs.min())
+    return [c for c in candidates if c.cost <= best + max(SAME_COST_ABS, SAME_COST_REL * abs(best))]
 
 
 def mean_of_group(group: Sequence[Candidate], period_s: float) -> PlanParameters:

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from lut.query.interpolation import Candidate, consistent_group, mean_of_group
+from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
 from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.stabilization_repair import REPAIR_ITERATIONS, stabilization_only
@@ -55,9 +55,11 @@ MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: n
 # a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
 # plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
 WARM_SHARE = 0.5
-# corners whose own plans are tried (heaviest first) when the interpolated plan fails verification, before any
-# solve: each costs one re-simulation and verification (seconds), a refine tens of seconds (README "Optimal tables")
-CORNER_TRIES = 2
+# corners whose own plans are tried (the cheapest, then the heaviest first) when the interpolated plan fails
+# verification, before any solve: each costs one re-simulation and verification and perhaps a repair (1-4 s), a refine
+# tens of seconds; a flat-spin cell has 8 corners (README "Optimal tables")
+CORNER_TRIES = 8
+CORNER_STAGE_S = 20.0  # no further corner is tried once the corners took this long [s]: the solves keep the rest
 
 
 class TableQuery:
@@ -79,6 +81,7 @@ class TableQuery:
         self.points: dict[int, PointResult] = {p: from_record(self.table.record(p)) for p in range(self.table.n_points)}
         self.feasible = [p for p, r in self.points.items() if r.status is PointStatus.FEASIBLE]
         self.scorer = CostScorer(self.scenario, self.planner.ff, self.planner.approach.spline)
+        self._costs: dict[int, float] = {}  # point → its plan's weighted cost (point_cost)
         self.load_time_s = time.perf_counter() - t0
 
     # ---- lookup + interpolation ------------------------------------------------------------
@@ -91,7 +94,7 @@ class TableQuery:
         period = _spin_period_s(state)
         candidates = self.corner_candidates(state)
         if candidates:
-            group = consistent_group(candidates, period)
+            group = consistent_group(cheapest(candidates), period)
             return TableAnswer(mean_of_group(group, period), [c.corner for c in group], QuerySource.INTERPOLATED,
                                projection.notes)
         if not self.feasible:
@@ -113,12 +116,25 @@ class TableQuery:
                 continue
             tau = point.parameters.approach.start_delay_s + self.phase_shift_s(corner, coords)
             carried = point.parameters.with_start_delay(tau % period if np.isfinite(period) else tau)
-            candidates.append(Candidate(corner, float(weight), carried))
+            candidates.append(Candidate(corner, float(weight), carried, self.point_cost(corner)))
         return candidates
 
+    def point_cost(self, point: int) -> float:
+        """The scenario's weighted cost of a feasible point's stored plan (0 for a feasibility-only table; NaN when the
+        table lacks the point's clearance that Eq. 15 needs), scored once."""
+        if self.scorer.feasibility_only:
+            return 0.0
+        if point not in self._costs:
+            stored = self.points[point]
+            self._costs[point] = self.scorer.score(f"corner {point}", stored.parameters.approach,
+                                                   stored.costs.get("min_distance_m", float("nan"))).total
+        return self._costs[point]
+
     def phase_shift_s(self, point: int, coords: NDArray[np.float64]) -> float:
-        """Start-delay shift [s] carrying grid point ``point``'s plan to ``coords`` (flat-spin symmetry)."""
-        return self.grid.start_delay_shift_s(self.grid.coordinates(point), coords)
+        """Start-delay shift [s] carrying grid point ``point``'s plan to ``coords`` (flat-spin symmetry): the target's
+        spin angle at the end of the plan's approach kept, where the gripper must be at the pre-grasp."""
+        meeting_s = self.points[point].parameters.approach.start_delay_s + self.scenario.phases.approach_s
+        return self.grid.start_delay_shift_s(self.grid.coordinates(point), coords, meeting_s=meeting_s)
 
     # ---- the whole query ---------------------------------------------------------------------
 
@@ -207,15 +223,19 @@ class TableQuery:
 
     def corner_plan(self, state: TargetState,
                     deadline: Deadline) -> tuple[GraspPlan, VerifyReport, list[int], QuerySource] | None:
-        """The first of the cell's :data:`CORNER_TRIES` heaviest feasible corners whose own plan, carried to
-        ``state``'s phase, verifies feasible there, as it is (source ``corner``) or with its stabilization repaired
-        (``repaired``): ``(plan, report, [corner], source)``; ``None`` if none does in time.
+        """The first of the cell's feasible corners (at most :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`;
+        those at the cell's lowest cost first, each group heaviest first) whose own plan, carried to ``state``'s phase,
+        verifies feasible there, as it is (source ``corner``) or with its stabilization repaired (``repaired``):
+        ``(plan, report, [corner], source)``; ``None`` if none does in time.
 
         Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
         in different families of solutions may collide or miss the grasp.
         """
-        for candidate in sorted(self.corner_candidates(state), key=lambda c: -c.weight)[:CORNER_TRIES]:
-            if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
+        candidates = self.corner_candidates(state)
+        cheap = {c.corner for c in cheapest(candidates)}
+        stage = Deadline.after(CORNER_STAGE_S)
+        for candidate in sorted(candidates, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]:
+            if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S or stage.passed:
                 return None
             plan, report = self.simulate_and_verify(state, candidate.parameters, {})
             if report.feasible:

@@ -269,16 +269,17 @@ class Grid:
             corner_coords.append([x for _, _, x in combo])
         return Cell(corners, np.array(weights), c, np.array(corner_coords))
 
-    def start_delay_shift_s(self, from_coords: ArrayLike, to_coords: ArrayLike, *, forward_turn: bool = False) -> float:
+    def start_delay_shift_s(self, from_coords: ArrayLike, to_coords: ArrayLike, *, forward_turn: bool = False,
+                            meeting_s: float = 0.0) -> float:
         """The start-delay shift [s] carrying a plan made at ``from_coords`` to ``to_coords`` (each ``(n_axes,)``)
-        by the flat-spin symmetry (:func:`lut.table.symmetry.start_delay_shift_s`; 0 on a grid without a phase
-        axis). The rate is ``to_coords``'."""
+        by the flat-spin symmetry, the spin angle at its meeting ``meeting_s`` [s] after the observation kept
+        (:func:`lut.table.symmetry.start_delay_shift_s`; 0 on a grid without a phase axis)."""
         names = self.axis_names
         if PHASE_AXIS not in names:
             return 0.0
-        i = names.index(PHASE_AXIS)
-        return start_delay_shift_s(from_coords[i], to_coords[i], to_coords[names.index(RATE_AXIS)],
-                                   forward_turn=forward_turn)
+        i, rate = names.index(PHASE_AXIS), names.index(RATE_AXIS)
+        return start_delay_shift_s(from_coords[i], to_coords[i], to_coords[rate], forward_turn=forward_turn,
+                                   rate_from_deg_s=from_coords[rate], meeting_s=meeting_s)
 
     def normalised_distance(self, a: ArrayLike, b: ArrayLike) -> float:
         """Distance between coordinates in grid steps (axis by axis; phase circular; 1 unit on fixed axes)."""

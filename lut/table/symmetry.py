@@ -4,6 +4,10 @@ A target spinning at ``r`` [deg/s] reaches phase ``φ₁`` from ``φ₀`` after 
 at phase ``φ₀`` serves phase ``φ₁`` with its start delay shifted by ``−(φ₁ − φ₀) / r``. This is why a
 flat-spin grid's phase axis may be coarse (docs/table.md, Grid symmetries). A build carries a warm start
 from a parent point to its child with it; a query carries a corner's plan to the observed phase.
+
+A plan carried to another rate keeps the spin angle at which it meets the target: at ``r₀`` it meets the target
+at ``φ₀ + r₀·t_m``, at ``r₁`` the same angle is ``(r₀ − r₁)·t_m / r₁`` later than the phase shift alone says
+(0.5 °/s over a 60 s meeting is 30° of spin: the arm would reach for the handle where it is not).
 """
 
 from __future__ import annotations
@@ -31,19 +35,26 @@ def phase_time_shift_s(phase_from_deg: float, phase_to_deg: float, rate_deg_s: f
 
 
 def start_delay_shift_s(phase_from_deg: float, phase_to_deg: float, rate_deg_s: float, *,
-                        forward_turn: bool = False) -> float:
-    """The start-delay shift [s] that carries a plan made at ``phase_from_deg`` to ``phase_to_deg`` [deg].
+                        forward_turn: bool = False, rate_from_deg_s: float | None = None,
+                        meeting_s: float = 0.0) -> float:
+    """The start-delay shift [s] that carries a plan made at ``phase_from_deg`` to ``phase_to_deg`` [deg] at
+    ``rate_deg_s`` [deg/s], keeping the spin angle at which it meets the target.
 
     ``−Δφ / rate``: the target at the later phase reaches the plan's configuration Δφ / rate earlier. Phases
-    within :data:`PHASE_SNAP_DEG` are one phase (shift 0, so a plan at its own node keeps its start delay
-    bit for bit), and so is a non-positive rate. ``forward_turn`` counts Δφ forward, in [0°, 360°) (the
+    within :data:`PHASE_SNAP_DEG` are one phase (no phase shift, so a plan at its own node keeps its start delay
+    bit for bit), and a non-positive rate gives 0. ``forward_turn`` counts Δφ forward, in [0°, 360°) (the
     build's rule); otherwise Δφ is the plain signed difference (the query's). The two differ by whole spin
     periods, which the start-delay wrap (:meth:`planner.plan_parameters.PlanParameters.shifted_in_time`)
-    removes; each keeps its own roundoff, so tables and plans stay bit-identical.
+    removes; each keeps its own roundoff, so tables and plans stay bit-identical. A plan made at another rate
+    ``rate_from_deg_s`` (None: the same) that meets the target ``meeting_s`` [s] after the observation is shifted
+    by ``(rate_from − rate)·meeting_s / rate`` more, so that it meets the target at the same spin angle.
     """
-    d = phase_to_deg - phase_from_deg
-    if abs(d) <= PHASE_SNAP_DEG or not rate_deg_s > 0:
+    if not rate_deg_s > 0:
         return 0.0
-    if forward_turn:
-        return -phase_time_shift_s(phase_from_deg, phase_to_deg, rate_deg_s)
-    return -d / rate_deg_s
+    d = phase_to_deg - phase_from_deg
+    shift = 0.0
+    if abs(d) > PHASE_SNAP_DEG:
+        shift = -phase_time_shift_s(phase_from_deg, phase_to_deg, rate_deg_s) if forward_turn else -d / rate_deg_s
+    if rate_from_deg_s is not None and rate_from_deg_s != rate_deg_s:
+        shift += (rate_from_deg_s - rate_deg_s) * meeting_s / rate_deg_s
+    return shift

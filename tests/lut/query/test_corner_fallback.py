@@ -1,7 +1,8 @@
 """A query whose interpolated plan fails verification tries to repair its stabilization, then its heaviest corners'
-own plans (each repaired if need be) before any solve (issue 21): the first that verifies is the answer, at most
-``CORNER_TRIES`` corners are tried, and an asked-for refine skips them all. The planner is replaced by a stand-in
-whose verdict depends on which parameters it is given (and, for a repair, on the plan it repairs)."""
+own plans (each repaired if need be) before any solve (issue 21): the first that verifies is the answer, the corners
+at the cell's lowest cost are tried first, at most ``CORNER_TRIES`` corners for at most ``CORNER_STAGE_S`` are tried,
+and an asked-for refine skips them all. The planner is replaced by a stand-in whose verdict depends on which
+parameters it is given (and, for a repair, on the plan it repairs)."""
 
 from __future__ import annotations
 
@@ -33,10 +34,11 @@ def opened() -> TableQuery:
 
 
 def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: set[int],
-              repairable: frozenset = frozenset()) -> list:
-    """Corners with these weights; a plan verifies iff it is one of ``feasible``'s own, its repair iff it is one of
-    ``repairable``'s ("interpolated" for the interpolated plan). Returns the tried order."""
-    candidates = [Candidate(c, w, tq.points[c].parameters) for c, w in weights.items()]
+              repairable: frozenset = frozenset(), costs: dict[int, float] | None = None) -> list:
+    """Corners with these weights (and costs, default 0); a plan verifies iff it is one of ``feasible``'s own, its
+    repair iff it is one of ``repairable``'s ("interpolated" for the interpolated plan). Returns the tried order."""
+    costs = costs or {}
+    candidates = [Candidate(c, w, tq.points[c].parameters, costs.get(c, 0.0)) for c, w in weights.items()]
     owner = {id(c.parameters): c.corner for c in candidates}
     tried: list = []
 
@@ -70,11 +72,33 @@ def test_the_heaviest_corner_that_verifies_is_the_answer_without_a_solve(opened,
 
 
 def test_only_corner_tries_are_made_then_the_solves_run(opened, monkeypatch):
+    monkeypatch.setattr(tq_module, "CORNER_TRIES", 2)
     tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0})
     res = opened.query(STATE, budget_s=100.0)
-    assert tried[:5] == ["interpolated", "repair interpolated", 1, "repair 1", 2] and tq_module.CORNER_TRIES == 2
+    assert tried[:5] == ["interpolated", "repair interpolated", 1, "repair 1", 2]
     assert tried[5:] == ["repair 2", "refine", "cold"]  # warm from the interpolation, then cold: both give nothing here
     assert res.source is QuerySource.INTERPOLATED and not res.report.feasible
+
+
+def test_no_corner_is_tried_once_the_corner_stage_has_taken_its_time(opened, monkeypatch):
+    monkeypatch.setattr(tq_module, "CORNER_STAGE_S", 0.0)
+    tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible={0, 1})
+    opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", "repair interpolated", "refine", "cold"]
+
+
+def test_corners_at_the_cells_lowest_cost_are_tried_first_and_alone_averaged(opened, monkeypatch):
+    """An optimal table's corner left in a local minimum (Eq. 16 at 0.3 m² where its neighbours hold ~1e-9 m²) is
+    neither averaged nor tried before the optimal corners, however heavy: the query would inherit its cost."""
+    costs = {0: 1e-9, 1: 0.3, 2: 2e-9}
+    same = opened.points[0].parameters  # one meeting time: only the costs can split the corners
+    alike = [Candidate(c, w, same, costs[c]) for c, w in {0: 0.1, 1: 0.5, 2: 0.4}.items()]
+    monkeypatch.setattr(opened, "corner_candidates", lambda state: alike)
+    assert sorted(opened.interpolate(STATE).corners) == [0, 2]
+    tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0, 1, 2}, costs=costs)
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", "repair interpolated", 2]  # the cheap ones by weight: 2 (0.4) before 0 (0.1)
+    assert res.corners_used == [2] and res.source is QuerySource.CORNER
 
 
 def test_an_asked_for_refine_skips_the_corners(opened, monkeypatch):

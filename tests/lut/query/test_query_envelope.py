@@ -48,7 +48,13 @@ def test_q_and_minus_q_get_the_same_answer(tq):
 def test_a_rate_at_the_grid_edge_and_1e_9_beyond_get_the_same_answer(tq):
     edge, beyond = tq.interpolate(_spin(4.0, 5.0)), tq.interpolate(_spin(4.0 + 1e-9, 5.0))
     assert edge.corners == beyond.corners and not edge.notes and not beyond.notes
-    np.testing.assert_allclose(_flat(beyond), _flat(edge), rtol=0, atol=1e-8)
+    delay = 2 + len(edge.parameters.approach.params)  # the start delay's index in _flat
+    keep = np.arange(_flat(edge).size) != delay
+    np.testing.assert_allclose(_flat(beyond)[keep], _flat(edge)[keep], rtol=0, atol=1e-8)
+    # a carried plan keeps the spin angle at its meeting (m ≤ 100 s after the observation), which a rate 1e-9 °/s
+    # higher reaches m·1e-9/4 s ≤ 2.5e-8 s earlier: continuous, not equal
+    shift = beyond.parameters.approach.start_delay_s - edge.parameters.approach.start_delay_s
+    assert -2.5e-8 <= shift < 0.0
 
 
 def test_a_rate_beyond_the_grid_is_answered_at_its_edge_and_says_so(tq):

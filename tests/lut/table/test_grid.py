@@ -340,6 +340,36 @@ def test_a_phase_offset_is_a_time_shift(grids):
     assert _same_state(moved, g.state_at([rate, alpha, phi0 - 30.0])) <= 1e-9
 
 
+def _attitude_at(g: Grid, coords, t_s: float):
+    """The target's attitude (wxyz) ``t_s`` [s] after the state at grid ``coords``."""
+    traj = propagate(g.inertia_body_kg_m2, g.state_at(coords), t_s + 1.0)
+    return traj.attitude_wxyz(t_s)[0]
+
+
+@pytest.mark.parametrize("forward_turn", [False, True])
+def test_a_plan_carried_to_another_rate_meets_the_target_at_the_same_angle(grids, forward_turn):
+    """Oracle: the propagated spin. A plan made at (rate r₀, phase φ₀) meets the target m [s] after its observation;
+    carried to (r₁, φ₁) it must meet the target in the same attitude. The phase shift alone misses by (r₀ − r₁)·m:
+    30° for 0.5 °/s over 60 s, the handle 0.5 m away from where the arm reaches."""
+    g = grids["three_axes"]
+    meeting_s = 250.0  # late enough that every carried meeting (a forward turn is up to a period earlier) is after 0
+    for a, b in [((3.0, 80.0, 0.0), (3.5, 80.0, 10.0)), ((4.0, 90.0, 30.0), (3.0, 90.0, 0.0)),
+                 ((3.5, 80.0, 20.0), (3.5, 80.0, 359.0)), ((3.0, 90.0, 10.0), (4.0, 90.0, 10.0))]:
+        shift = g.start_delay_shift_s(np.array(a), np.array(b), forward_turn=forward_turn, meeting_s=meeting_s)
+        before, after = _attitude_at(g, a, meeting_s), _attitude_at(g, b, meeting_s + shift)
+        assert min(np.linalg.norm(before - after), np.linalg.norm(before + after)) < 1e-9, (a, b)
+        phase_only = g.start_delay_shift_s(np.array(a), np.array(b), forward_turn=forward_turn)
+        assert shift - phase_only == pytest.approx((a[0] - b[0]) * meeting_s / b[0], abs=1e-12)
+
+
+def test_a_plan_carried_to_its_own_rate_or_node_shifts_as_the_phase_alone(grids):
+    """Same rate: the meeting time plays no part (bit for bit the phase shift); the node itself: no shift at all."""
+    g = grids["three_axes"]
+    a, b = np.array([3.5, 80.0, 10.0]), np.array([3.5, 80.0, 25.0])
+    assert g.start_delay_shift_s(a, b, meeting_s=70.0) == g.start_delay_shift_s(a, b) == -15.0 / 3.5
+    assert g.start_delay_shift_s(a, a, meeting_s=70.0) == 0.0
+
+
 # ---- cells -----------------------------------------------------------------------------------------
 
 
