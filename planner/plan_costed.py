@@ -49,6 +49,10 @@ RELATIVE_GAIN_MIN = 1e-4  # a step must lower the cost by this fraction of max(|
 # the costed approach's own optimum gets at least this many iterations, its base-pinned start included: scenario I
 # flat spins needed 60 (11 pinned + 49 free), at the retry budget's floor, and lost their optimum when cut there
 COSTED_APPROACH_MIN_ITERATIONS = COLD_START_ITERATIONS
+# the feasibility stage's re-solves of an approach with tightened tracking rates (or raised clearances) get this many
+# IPOPT iterations: at scenario I flat spins they ran 496-759 (68-99 s of a 100 s budget) where the costed approach's
+# own optimum, solved next, needed no tightening and was braked in seconds (README "Optimal tables")
+FEASIBILITY_RESOLVE_ITERATIONS = COLD_START_ITERATIONS
 
 
 @dataclass
@@ -86,7 +90,7 @@ def plan_costed(planner: PhasePlanner, feasibility: PhasePlanner, state: TargetS
     """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): ``feasibility`` (the same
     scenario without approach costs) finds a stabilized grasp, warm from ``warm`` when given; then the costed
     approach's own optimum, kept if it can be braked and is cheaper; then the descent."""
-    search = GraspSearch(feasibility, state, warm, scan, motion, deadline)
+    search = GraspSearch(feasibility, state, warm, scan, motion, deadline, FEASIBILITY_RESOLVE_ITERATIONS)
     candidate, stab = search.run()
     out = CostDescent(candidate, stab, search.timings_s(), list(search.notes))
     if not out.stabilized:

@@ -142,9 +142,11 @@ class GraspSearch:
     """One plan's search over grasps: its scan, tracking-rate scale, notes and phase times, for this plan only."""
 
     def __init__(self, planner: PhasePlanner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
-                 motion: TargetMotion, deadline: Deadline = NO_DEADLINE) -> None:
+                 motion: TargetMotion, deadline: Deadline = NO_DEADLINE, resolve_iterations: int | None = None) -> None:
+        """``resolve_iterations``: IPOPT iterations of each re-solve of an approach with tightened rates or raised
+        clearances (None: the scenario's limit only)."""
         self.planner, self.state, self.warm, self.scan, self.motion = planner, state, warm, scan, motion
-        self.deadline = deadline
+        self.deadline, self.resolve_iterations = deadline, resolve_iterations
         # of the approach's tracking-rate bounds, per tracking segment; tightened within this plan
         self.tracking_speed_scale = np.ones(len(TRACKING_NODES))
         self.notes: list[str] = []
@@ -267,7 +269,7 @@ class GraspSearch:
                 raised = more if raised is None else np.maximum(raised, more)
             # near the grasp whose demand was measured (free, a retry drifted back to a grasp that had failed)
             retry = self._solve_approach(app.parameters, meeting_time_box_s=MEETING_TIME_BOX_S,
-                                         collision_raise_m=raised)
+                                         collision_raise_m=raised, max_iterations=self.resolve_iterations)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = accumulated(app, retry)

@@ -96,8 +96,11 @@ def test_a_rate_excess_tightens_only_its_own_tracking_segment(planner_II, monkey
     app = solve_approach(planner_II.approach, state)
     scales = []
 
+    iteration_caps = []
+
     def solve(problem, state_, warm, tracking_speed_scale, **options):
         scales.append(np.array(tracking_speed_scale, dtype=float))
+        iteration_caps.append(options.get("max_iterations"))
         return app
 
     real = planner_II.approach_and_tracking
@@ -111,11 +114,33 @@ def test_a_rate_excess_tightens_only_its_own_tracking_segment(planner_II, monkey
     monkeypatch.setattr(plan_grasps_module, "solve_approach", solve)
     monkeypatch.setattr(planner_II, "approach_and_tracking", tracked)
     scan = ScanOnDemand(planner_II.scenario, planner_II.approach.spline, state, 3)
-    search = GraspSearch(planner_II, state, None, scan, planner_II.motion(state))
+    search = GraspSearch(planner_II, state, None, scan, planner_II.motion(state), resolve_iterations=150)
     search._candidate(app)
     assert len(scales) == 1  # one re-solve, with the first segment's bounds only scaled
     assert np.allclose(scales[0], [TIGHTENING_MARGIN / 2.0, 1.0, 1.0])
     assert "tracking segment 1" in search.notes[0]
+    assert iteration_caps == [150]  # a costed plan's feasibility stage caps it (planner.plan_costed)
+
+
+def test_a_costed_plans_feasibility_stage_caps_its_re_solves(monkeypatch):
+    """Its re-solves with tightened rates ran 496-759 iterations (68-99 s) at scenario I flat spins whose costed
+    approach, solved next, needed none: the feasibility stage's GraspSearch gets FEASIBILITY_RESOLVE_ITERATIONS."""
+    import planner.plan_costed as costed
+
+    made = {}
+
+    class Search:
+        def __init__(self, *args, **kwargs):
+            made["args"] = args
+
+        def run(self):
+            raise StopIteration  # the arguments are all this test reads
+
+    monkeypatch.setattr(costed, "GraspSearch", Search)
+    with pytest.raises(StopIteration):
+        costed.plan_costed(None, "feasibility", None, None, None, None, None)
+    assert made["args"][0] == "feasibility" and made["args"][-1] == costed.FEASIBILITY_RESOLVE_ITERATIONS
+    assert 0 < costed.FEASIBILITY_RESOLVE_ITERATIONS < 496
 
 
 def test_a_start_delay_just_outside_the_window_is_read_inside_it(planner_II):
