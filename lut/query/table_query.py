@@ -59,7 +59,7 @@ WARM_SHARE = 0.5
 # verification, before any solve: each costs one re-simulation and verification and perhaps a repair (1-4 s), a refine
 # tens of seconds; a flat-spin cell has 8 corners (README "Optimal tables")
 CORNER_TRIES = 8
-CORNER_STAGE_S = 20.0  # no further corner is tried once the corners took this long [s]: the solves keep the rest
+CORNER_STAGE_S = 20.0  # no corner is started once the corners took this long [s]: the solves keep the rest
 
 
 class TableQuery:

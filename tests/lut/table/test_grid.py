@@ -22,7 +22,8 @@ ROOT = Path(__file__).resolve().parents[3]
 GRIDS = ROOT / "configs" / "grids"
 SCEN_I = ROOT / "configs" / "scenarios" / "scenario_I.toml"
 SCEN_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
-BUNDLED = {"ci": 4, "ci_optimal": 4, "demo": 9, "flat_spin": 1092, "flat_spin_I_energy": 18, "tumble": 1125}
+BUNDLED = {"ci": 4, "ci_optimal": 4, "demo": 9, "flat_spin": 1092, "flat_spin_I_energy": 18, "flat_spin_II_energy": 18,
+           "tumble": 1125}
 # a three-axis flat-spin grid (3 rates × 2 spin-axis angles × 4 phases) owned by the tests
 THREE_AXES = """
 name = "three_axes"
@@ -455,7 +456,12 @@ def test_continuation_order_covers_every_point_after_its_parent(grids, name):
         assert parent is not None and position[parent] < k and parent in g.neighbours(p), (p, parent)
     assert g.continuation_order() == order  # deterministic
     if g.kind == "flat_spin" and g.default_coordinates is not None:  # the scenario default: 4 °/s about +z, phase 0
-        np.testing.assert_allclose(g.coordinates(seed), [4.0, 90.0, 0.0])
+        np.testing.assert_allclose(g.default_coordinates, [4.0, 90.0, 0.0])
+        # the seed is the default where it is a grid point, else a point nearest to it (flat_spin_II_energy: α 85 or 95)
+        gaps = [g.normalised_distance(g.coordinates(p), g.default_coordinates) for p in range(g.n_points)]
+        assert gaps[seed] == min(gaps)
+        if min(gaps) > 0:
+            assert name == "flat_spin_II_energy"
     elif g.default_coordinates is None:  # scenario I's default spins about the orbit normal: the grid's centre
         assert g.index_of(seed) == tuple(n // 2 for n in g.shape)
 
