@@ -3,14 +3,16 @@
 1. The state is mapped to grid coordinates (flat spin: rate, spin-axis angle, phase) and its cell; a state
    off the grid's family (an estimator's flat spin is never exact) or beyond an axis' bounds is answered at
    the nearest grid coordinates, and the result says so (:mod:`lut.table.grid_projection`).
-2. The feasible corners of the cell are interpolated — only mutually consistent ones
-   (:mod:`lut.query.interpolation`). Without a feasible corner the nearest feasible point of the table is used.
+2. The feasible corners of the cell, carried to the state (the same spin angle at the meeting), are interpolated —
+   only mutually consistent ones at the cell's lowest cost (:mod:`lut.query.interpolation`). Without a feasible
+   corner the nearest feasible point of the table is used.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
    actual grasp state) and verified densely.
 4. If the interpolated plan is not feasible only from its grasp on, its stabilization is re-solved warm at the grasp
    it reached, in process (:mod:`lut.query.stabilization_repair`; source ``repaired``). Otherwise, or if that fails,
-   the heaviest corners' own plans (carried to the state's phase) are re-simulated and verified the same way (each
-   repaired so if needed), and the first feasible one is the answer (source ``corner`` or ``repaired``).
+   the corners' own plans (carried to the state; the cheapest, then the heaviest first) are re-simulated and verified
+   the same way (each repaired so if needed), and the first feasible one is the answer (source ``corner`` or
+   ``repaired``).
 5. If that is not feasible either, or refinement was asked for, a warm-started solve runs in a child process
    within what is left of the time budget (killed at it); a feasible refined plan replaces the
    interpolated one. If there is still no feasible plan, a cold solve gets what is left after that.
@@ -203,7 +205,7 @@ class TableQuery:
     def table_plan(self, state: TargetState, found: TableAnswer, deadline: Deadline, latency: dict[str, float],
                    refine: bool) -> tuple[GraspPlan, VerifyReport, list[int], QuerySource]:
         """The table's own plan at ``state``: ``found`` re-simulated and verified; unless a refine was asked for and
-        while it is not feasible, its stabilization repaired (:meth:`repaired`), then the heaviest corners' own plans
+        while it is not feasible, its stabilization repaired (:meth:`repaired`), then the corners' own plans
         (:meth:`corner_plan`). Returns the plan, its report, the corners it came from and its source."""
         plan, report = self.simulate_and_verify(state, found.parameters, latency)
         if report.feasible or refine:
