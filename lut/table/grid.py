@@ -271,9 +271,8 @@ class Grid:
 
     def start_delay_shift_s(self, from_coords: ArrayLike, to_coords: ArrayLike, *, forward_turn: bool = False,
                             meeting_s: float = 0.0) -> float:
-        """The start-delay shift [s] carrying a plan made at ``from_coords`` to ``to_coords`` (each ``(n_axes,)``)
-        by the flat-spin symmetry, the spin angle at its meeting ``meeting_s`` [s] after the observation kept
-        (:func:`lut.table.symmetry.start_delay_shift_s`; 0 on a grid without a phase axis)."""
+        """Start-delay shift [s] from ``from_coords`` to ``to_coords`` keeping the spin angle at the plan's meeting,
+        ``meeting_s`` [s] after the observation (:func:`lut.table.symmetry.start_delay_shift_s`; 0 without a phase)."""
         names = self.axis_names
         if PHASE_AXIS not in names:
             return 0.0
