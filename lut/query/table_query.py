@@ -83,7 +83,7 @@ class TableQuery:
         self.points: dict[int, PointResult] = {p: from_record(self.table.record(p)) for p in range(self.table.n_points)}
         self.feasible = [p for p, r in self.points.items() if r.status is PointStatus.FEASIBLE]
         self.scorer = CostScorer(self.scenario, self.planner.ff, self.planner.approach.spline)
-        self._costs: dict[int, float] = {}  # point → its plan's weighted cost (point_cost)
+        self._corner_costs: dict[int, CostBreakdown] = {}  # point → its stored plan's cost terms (corner_costs)
         self.load_time_s = time.perf_counter() - t0
 
     # ---- lookup + interpolation ------------------------------------------------------------
@@ -118,19 +118,9 @@ class TableQuery:
                 continue
             tau = point.parameters.approach.start_delay_s + self.phase_shift_s(corner, coords)
             carried = point.parameters.with_start_delay(tau % period if np.isfinite(period) else tau)
-            candidates.append(Candidate(corner, float(weight), carried, self.point_cost(corner)))
+            cost = 0.0 if self.scorer.feasibility_only else self.corner_costs(corner).total
+            candidates.append(Candidate(corner, float(weight), carried, cost))
         return candidates
-
-    def point_cost(self, point: int) -> float:
-        """The scenario's weighted cost of a feasible point's stored plan (0 for a feasibility-only table; NaN when the
-        table lacks the point's clearance that Eq. 15 needs), scored once."""
-        if self.scorer.feasibility_only:
-            return 0.0
-        if point not in self._costs:
-            stored = self.points[point]
-            self._costs[point] = self.scorer.score(f"corner {point}", stored.parameters.approach,
-                                                   stored.costs.get("min_distance_m", float("nan"))).total
-        return self._costs[point]
 
     def phase_shift_s(self, point: int, coords: NDArray[np.float64]) -> float:
         """Start-delay shift [s] carrying grid point ``point``'s plan to ``coords`` (flat-spin symmetry): the target's
@@ -195,12 +185,17 @@ class TableQuery:
         if self.scorer.feasibility_only:
             return ()
         rows = [self.scorer.score("plan", plan.approach.parameters, float(np.min(report.min_distance_m)))]
-        for corner in corners:
-            point = self.points[corner]
-            if point.parameters is not None:
-                rows.append(self.scorer.score(f"corner {corner}", point.parameters.approach,
-                                              point.costs.get("min_distance_m", float("nan"))))
+        rows += [self.corner_costs(c) for c in corners if self.points[c].parameters is not None]
         return tuple(rows)
+
+    def corner_costs(self, point: int) -> CostBreakdown:
+        """The weighted cost terms of a feasible point's stored plan, from its parameters and verified clearance (NaN
+        without ``costs/min_distance_m``), scored once per table."""
+        if point not in self._corner_costs:
+            stored = self.points[point]
+            self._corner_costs[point] = self.scorer.score(f"corner {point}", stored.parameters.approach,
+                                                          stored.costs.get("min_distance_m", float("nan")))
+        return self._corner_costs[point]
 
     def table_plan(self, state: TargetState, found: TableAnswer, deadline: Deadline, latency: dict[str, float],
                    refine: bool) -> tuple[GraspPlan, VerifyReport, list[int], QuerySource]:

@@ -55,6 +55,6 @@ def start_delay_shift_s(phase_from_deg: float, phase_to_deg: float, rate_deg_s: 
     shift = 0.0
     if abs(d) > PHASE_SNAP_DEG:
         shift = -phase_time_shift_s(phase_from_deg, phase_to_deg, rate_deg_s) if forward_turn else -d / rate_deg_s
-    if rate_from_deg_s is not None and rate_from_deg_s != rate_deg_s:
+    if rate_from_deg_s is not None:  # 0 at the same rate: the phase shift bit for bit
         shift += (rate_from_deg_s - rate_deg_s) * meeting_s / rate_deg_s
     return shift

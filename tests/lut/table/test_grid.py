@@ -369,6 +369,11 @@ def test_a_plan_carried_to_its_own_rate_or_node_shifts_as_the_phase_alone(grids)
     a, b = np.array([3.5, 80.0, 10.0]), np.array([3.5, 80.0, 25.0])
     assert g.start_delay_shift_s(a, b, meeting_s=70.0) == g.start_delay_shift_s(a, b) == -15.0 / 3.5
     assert g.start_delay_shift_s(a, a, meeting_s=70.0) == 0.0
+    # a non-positive target rate (no spin to carry along) and a meeting at the observation itself
+    from lut.table.symmetry import start_delay_shift_s
+
+    assert start_delay_shift_s(10.0, 25.0, 0.0, rate_from_deg_s=3.5, meeting_s=70.0) == 0.0
+    assert start_delay_shift_s(10.0, 25.0, 3.0, rate_from_deg_s=4.0, meeting_s=0.0) == -15.0 / 3.0
 
 
 # ---- cells -----------------------------------------------------------------------------------------
@@ -460,8 +465,7 @@ def test_continuation_order_covers_every_point_after_its_parent(grids, name):
         # the seed is the default where it is a grid point, else a point nearest to it (flat_spin_II_energy: α 85 or 95)
         gaps = [g.normalised_distance(g.coordinates(p), g.default_coordinates) for p in range(g.n_points)]
         assert gaps[seed] == min(gaps)
-        if min(gaps) > 0:
-            assert name == "flat_spin_II_energy"
+        assert (min(gaps) == 0) == all(x in v for x, v in zip(g.default_coordinates, g.axis_values, strict=True))
     elif g.default_coordinates is None:  # scenario I's default spins about the orbit normal: the grid's centre
         assert g.index_of(seed) == tuple(n // 2 for n in g.shape)
 
