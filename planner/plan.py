@@ -136,8 +136,9 @@ class Planner:
         reachable time the approach NLP would only search from θ_in for minutes). A cold plan whose
         stabilization fails from the first grasp tries the grasps the approach reaches from its next scanned
         guesses (:class:`~planner.plan_grasps.GraspSearch`). A warm plan keeps its grasp (a table's neighbours
-        stay in one family of solutions). With approach costs (Eq. 14-16) the plan is that feasibility plan's grasp
-        with its cost then lowered from there (:mod:`planner.plan_costed`). Past ``deadline`` no new solve starts and
+        stay in one family of solutions). With approach costs (Eq. 14-16) the plan is the costed approach's own
+        optimum where it can be braked, else that feasibility plan's grasp, its cost then lowered from there
+        (:mod:`planner.plan_costed`). Past ``deadline`` no new solve starts and
         a running one ends: the plan is what was found by then (its notes say so; verify judges it).
         """
         t_start = time.perf_counter()
@@ -158,8 +159,8 @@ class Planner:
 
     def _plan_costed(self, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
                      deadline: Deadline) -> GraspPlan:
-        """A plan with approach costs: the feasibility plan's grasp (warm from ``warm`` when given), then its cost
-        lowered from there (:mod:`planner.plan_costed`)."""
+        """A plan with approach costs: the costed approach's own optimum if it can be braked, else the feasibility
+        plan's grasp (warm from ``warm`` when given), then its cost lowered from there (:mod:`planner.plan_costed`)."""
         out = plan_costed(self, self.feasibility_planner, state, warm, scan, self.motion(state), deadline)
         return self.assemble(state, out.candidate, out.stabilization, out.timings_s, out.notes)
 

@@ -1,16 +1,16 @@
-"""A costed plan (paper Eq. 14-16): a feasible grasp first, then its approach cost lowered in trust-region steps that
-each keep the whole plan feasible.
+"""A costed plan (paper Eq. 14-16): the costed approach's own optimum where it can be braked, else a feasible grasp
+first, then its approach cost lowered in trust-region steps that each keep the whole plan feasible.
 
 The approach NLP with a cost, solved on its own, optimises the approach alone: in scenario II its optimum is a grasp
 from which no braking within ±10 N·m exists, and the stabilization NLP can only fail there. So a costed plan first
-finds a stabilized grasp with the feasibility plan; then it solves the costed approach as it stands and keeps that
-grasp if it can be braked and is cheaper (scenario I); then it lowers the approach cost step by step from the best
-grasp: each step re-solves the costed approach warm from the current grasp with the meeting time kept and θ_b(0)
-inside a box of radius r around the current one, tracks, and re-solves the stabilization warm from the current
-spline; the step is kept only if that stabilization succeeds. The full step (r = ∞) is tried first; then r starts
-at :data:`FIRST_RADIUS_M`, doubles after a kept step and halves after a refused one. The plan is feasible as soon as
-the feasibility plan is, and its cost only falls while steps are kept and time remains.
-"""
+solves the costed approach as it stands and keeps that grasp if it can be tracked and braked (scenario I: no
+feasibility plan is needed); else the feasibility plan finds a stabilized grasp. Then it lowers the approach cost
+step by step from the grasp kept: each step re-solves the costed approach warm from the current grasp with the
+meeting time kept and θ_b(0) inside a box of radius r around the current one, tracks, and re-solves the
+stabilization warm from the current spline; the step is kept only if that stabilization succeeds. The full step
+(r = ∞) is tried first; then r starts at :data:`FIRST_RADIUS_M`, doubles after a kept step and halves after a
+refused one. The plan is feasible as soon as its first grasp is braked, and its cost only falls while steps are kept
+and time remains."""
 
 from __future__ import annotations
 
@@ -29,6 +29,7 @@ from planner.phases.approach_solve import (
     solve_approach_near,
 )
 from planner.phases.stabilization import StabilizationSolution
+from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_grasps import (
     RATE_DEMAND_TOLERATED,
     SCREEN_BUDGET,
@@ -36,7 +37,6 @@ from planner.plan_grasps import (
     GraspCandidate,
     GraspSearch,
     PhasePlanner,
-    approach_retry_budget,
 )
 from planner.plan_parameters import PlanParameters
 
@@ -46,13 +46,14 @@ MAX_STEPS = 8  # trust-region steps after the full one: each is an approach and 
 STEP_APPROACH_ITERATIONS = 100  # the full step with the meeting time kept took 52 (scenario II)
 STEP_STABILIZATION_ITERATIONS = 30  # steps that kept the braking feasible re-solved it in 8-14
 RELATIVE_GAIN_MIN = 1e-4  # a step must lower the cost by this fraction of max(|cost|, 1)
-# the costed approach's own optimum gets at least this many iterations, its base-pinned start included: scenario I
-# flat spins needed 60 (11 pinned + 49 free), at the retry budget's floor, and lost their optimum when cut there
-COSTED_APPROACH_MIN_ITERATIONS = COLD_START_ITERATIONS
+# the costed approach's own optimum gets this many iterations, its base-pinned start included: scenario I flat spins
+# needed 60 (11 pinned + 49 free) and lost their optimum when cut there
+COSTED_APPROACH_ITERATIONS = COLD_START_ITERATIONS
 # the feasibility stage's re-solves of an approach with tightened tracking rates (or raised clearances) get this many
 # IPOPT iterations: at scenario I flat spins they ran 496-759 (68-99 s of a 100 s budget) where the costed approach's
-# own optimum, solved next, needed no tightening and was braked in seconds (README "Optimal tables")
+# own optimum needed no tightening and was braked in seconds (README "Optimal tables")
 FEASIBILITY_RESOLVE_ITERATIONS = COLD_START_ITERATIONS
+DIRECT_SHARE = 0.5  # of a bounded budget, for the costed approach's own optimum before any feasibility plan
 
 
 @dataclass
@@ -68,6 +69,7 @@ class CostDescent:
     cost_end: float = float("nan")
     steps_kept: int = 0
     steps_refused: int = 0
+    first_grasp: str = "the feasibility plan's grasp"  # where the descent started
 
     @property
     def stabilized(self) -> bool:
@@ -80,52 +82,69 @@ class CostDescent:
 
     def summary(self) -> str:
         """One line for the plan's notes."""
-        return (f"costed plan: approach cost {self.cost_start:.6g} at the feasibility plan's grasp, "
+        return (f"costed plan: approach cost {self.cost_start:.6g} at {self.first_grasp}, "
                 f"{self.cost_end:.6g} in the end ({self.steps_kept} trust-region steps kept, {self.steps_refused} "
                 "refused; a step keeps the meeting time and is kept only if the stabilization stays feasible)")
 
 
 def plan_costed(planner: PhasePlanner, feasibility: PhasePlanner, state: TargetState, warm: PlanParameters | None,
                 scan: ScanOnDemand, motion: TargetMotion, deadline: Deadline) -> CostDescent:
-    """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): ``feasibility`` (the same
-    scenario without approach costs) finds a stabilized grasp, warm from ``warm`` when given; then the costed
-    approach's own optimum, kept if it can be braked and is cheaper; then the descent."""
-    search = GraspSearch(feasibility, state, warm, scan, motion, deadline, FEASIBILITY_RESOLVE_ITERATIONS)
-    candidate, stab = search.run()
-    out = CostDescent(candidate, stab, search.timings_s(), list(search.notes))
-    if not out.stabilized:
-        return out
-    out.cost_start = out.cost_end = approach_cost(planner.approach, state, candidate.app)
-    _direct_attempt(planner, state, warm, scan, motion, deadline, out)
-    _descend(planner, state, motion, out, search.tracking_speed_scale, deadline)
+    """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): the costed approach's own
+    optimum, kept if it can be braked; else ``feasibility`` (the same scenario without approach costs) finds a
+    stabilized grasp, warm from ``warm`` when given; then the descent from the grasp kept."""
+    timings_s = {"approach_s": 0.0, "stabilization_s": 0.0}
+    direct = _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(deadline), timings_s)
+    if direct is not None:
+        candidate, stab, cost = direct
+        out = CostDescent(candidate, stab, timings_s, ["costed plan: the costed approach's own optimum can be braked: "
+                                                       "it is kept (no feasibility plan needed)"],
+                          cost, cost, first_grasp="the costed approach's own optimum")
+        scale = np.ones(len(TRACKING_NODES))  # no rate was tightened
+    else:
+        search = GraspSearch(feasibility, state, warm, scan, motion, deadline, FEASIBILITY_RESOLVE_ITERATIONS)
+        candidate, stab = search.run()
+        found = search.timings_s()
+        out = CostDescent(candidate, stab, {k: timings_s[k] + found[k] for k in timings_s},
+                          ["costed plan: the costed approach's own optimum could not be braked (or was not solved in "
+                           "its share of the budget): the feasibility plan's grasp first", *search.notes])
+        if not out.stabilized:
+            return out
+        out.cost_start = out.cost_end = approach_cost(planner.approach, state, candidate.app)
+        scale = search.tracking_speed_scale
+    _descend(planner, state, motion, out, scale, deadline)
     out.notes.append(out.summary())
     return out
 
 
+def _direct_deadline(deadline: Deadline) -> Deadline:
+    """The costed approach's own optimum gets :data:`DIRECT_SHARE` of what is left of a bounded budget, so that the
+    feasibility plan that follows where it cannot be braked keeps the rest."""
+    if not deadline.bounded:
+        return deadline
+    return deadline.earlier((1.0 - DIRECT_SHARE) * max(deadline.remaining_s(), 0.0))
+
+
 def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
-                    motion: TargetMotion, deadline: Deadline, out: CostDescent) -> None:
-    """The costed approach NLP as it stands (its optimum over every meeting time, the paper's sequence) within a
-    retry's iteration budget of the feasibility approach's, its grasp tracked and braked within
-    :data:`STABILIZATION_BUDGET` after the screen: kept when that succeeds and is cheaper (scenario I), else nothing
-    changes (scenario II: no ±10 N·m braking from there)."""
+                    motion: TargetMotion, deadline: Deadline,
+                    timings_s: dict[str, float]) -> tuple[GraspCandidate, StabilizationSolution, float] | None:
+    """The costed approach NLP as it stands (its optimum over every meeting time, the paper's sequence) within
+    :data:`COSTED_APPROACH_ITERATIONS`, its grasp tracked and braked within :data:`STABILIZATION_BUDGET` after
+    the screen: ``(grasp, stabilization, cost)`` when that succeeds (scenario I), else None (scenario II: no ±10 N·m
+    braking from there; a tracking that asks too much is not repaired here); its solve times go to ``timings_s``."""
     if deadline.passed:
-        return
+        return None
     app = solve_approach(planner.approach, state, None if warm is None else warm.approach, scan=scan,
-                         max_iterations=max(COSTED_APPROACH_MIN_ITERATIONS,
-                                            approach_retry_budget(out.candidate.app.iterations)),
-                         deadline=deadline)
-    out.timings_s["approach_s"] += app.solve_time_s
-    if not app.success or deadline.passed or app.cost >= out.cost_end:
-        return
+                         max_iterations=COSTED_APPROACH_ITERATIONS, deadline=deadline)
+    timings_s["approach_s"] += app.solve_time_s
+    if not app.success or deadline.passed:
+        return None
     candidate = planner.candidate_from(app, *planner.approach_and_tracking(app, motion), motion)
     if not _trackable(planner, candidate, motion):
-        return
+        return None
     stab = candidate.stabilize(None if warm is None else warm.stabilization_params, STABILIZATION_BUDGET,
                                SCREEN_BUDGET, deadline)
-    out.timings_s["stabilization_s"] += stab.solve_time_s
-    if stab.success:
-        out.keep(candidate, stab, app.cost)
-        out.notes.append("costed plan: the costed approach's own optimum can be braked: it is kept")
+    timings_s["stabilization_s"] += stab.solve_time_s
+    return (candidate, stab, app.cost) if stab.success else None
 
 
 def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent,

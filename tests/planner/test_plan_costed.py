@@ -89,6 +89,80 @@ def test_past_the_deadline_no_step_is_tried(monkeypatch):
     assert stand.radii == [] and d.cost_end == d.cost_start
 
 
+class _Direct:
+    """The stand-ins of a costed plan's stages: the costed approach's own optimum at ``cost``, braked or not, and a
+    feasibility GraspSearch that records how it was made and returns a grasp at cost 0.5."""
+
+    def __init__(self, monkeypatch, braked: bool, cost: float = 1e-9) -> None:
+        self.approach_calls, self.searches = [], []
+        stab = SimpleNamespace(success=braked, params=np.zeros(3), solve_time_s=2.0)
+        self.app = SimpleNamespace(success=True, cost=cost, solve_time_s=3.0, base_offset_m=np.zeros(2))
+        self.candidate = SimpleNamespace(app=self.app, tracking=SimpleNamespace(peak_rate_demand=1.0),
+                                         approach_samples=None, stabilize=lambda *args: stab)
+        feasible_app = SimpleNamespace(success=True, base_offset_m=np.array([0.5, 0.5]))
+        feasible = SimpleNamespace(app=feasible_app, stabilization=None)
+        outer = self
+
+        class Search:
+            def __init__(self, *args):
+                outer.searches.append(args)
+                self.notes, self.tracking_speed_scale = ["feasibility note"], np.ones(3)
+
+            def run(self):
+                return feasible, SimpleNamespace(success=True, params=np.ones(3))
+
+            def timings_s(self):
+                return {"approach_s": 10.0, "stabilization_s": 20.0}
+
+        monkeypatch.setattr(costed, "GraspSearch", Search)
+        monkeypatch.setattr(costed, "solve_approach", self.solve)
+        monkeypatch.setattr(costed, "approach_cost", lambda problem, state, app: approach_energy(app.base_offset_m))
+        monkeypatch.setattr(costed, "_descend", lambda *args: None)
+        self.planner = SimpleNamespace(approach="costed NLP", approach_and_tracking=lambda app, motion: (None, None),
+                                       candidate_from=lambda app, samples, tr, motion: self.candidate,
+                                       approach_clearance=SimpleNamespace(raised_bounds=lambda *args: (None, [])))
+
+    def solve(self, problem, state, warm, scan, max_iterations, deadline):
+        self.approach_calls.append((problem, max_iterations, deadline))
+        return self.app
+
+    def plan(self, deadline: Deadline = NO_DEADLINE) -> costed.CostDescent:
+        return costed.plan_costed(self.planner, "feasibility", None, None, "scan", None, deadline)
+
+
+def test_a_braked_costed_optimum_needs_no_feasibility_plan(monkeypatch):
+    """Scenario I: the costed approach's own optimum can be braked, so it is the plan's grasp at once (the
+    feasibility stage cost 68-99 s at some flat spins and its grasp is then dropped anyway)."""
+    d = _Direct(monkeypatch, braked=True)
+    out = d.plan()
+    assert d.searches == [] and out.candidate is d.candidate and out.cost_start == out.cost_end == 1e-9
+    assert d.approach_calls == [("costed NLP", costed.COSTED_APPROACH_ITERATIONS, NO_DEADLINE)]
+    assert out.timings_s == {"approach_s": 3.0, "stabilization_s": 2.0}
+    assert "no feasibility plan needed" in out.notes[0] and "at the costed approach's own optimum" in out.notes[-1]
+
+
+def test_an_unbraked_costed_optimum_falls_back_to_the_feasibility_plan(monkeypatch):
+    """Scenario II: the costed optimum cannot be braked; the feasibility stage (its re-solves capped) gives the grasp
+    the descent starts from, and the costed optimum is not solved a second time."""
+    d = _Direct(monkeypatch, braked=False)
+    out = d.plan()
+    assert len(d.approach_calls) == 1 and len(d.searches) == 1
+    assert d.searches[0][0] == "feasibility" and d.searches[0][-1] == costed.FEASIBILITY_RESOLVE_ITERATIONS
+    assert out.cost_start == out.cost_end == pytest.approx(0.5)
+    assert out.timings_s == {"approach_s": 13.0, "stabilization_s": 22.0}
+    assert "feasibility note" in out.notes and "at the feasibility plan's grasp" in out.notes[-1]
+
+
+def test_the_costed_optimum_gets_half_of_a_bounded_budget(monkeypatch):
+    """Where it cannot be braked, the feasibility plan keeps the other half of what is left; without a budget it is
+    unbounded."""
+    d = _Direct(monkeypatch, braked=True)
+    d.plan(Deadline.after(100.0))
+    d.plan()
+    bounded, unbounded = d.approach_calls[0][2], d.approach_calls[1][2]
+    assert bounded.remaining_s() == pytest.approx(50.0, abs=0.5) and not unbounded.bounded
+
+
 @pytest.fixture(scope="module")
 def energy_problem():
     from planner.config.scenario import load_scenario

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from planner.config.scenario import load_scenario
+from planner.deadline import NO_DEADLINE
 from planner.model.target_state import TargetState
 from planner.phases.approach_solve import SINGULARITY_CLEARANCE_RAD, _one_side_of_singularities, solve_approach
 from planner.phases.tracking_profile import TRACKING_NODES, node_segment
@@ -137,8 +138,9 @@ def test_a_costed_plans_feasibility_stage_caps_its_re_solves(monkeypatch):
             raise StopIteration  # the arguments are all this test reads
 
     monkeypatch.setattr(costed, "GraspSearch", Search)
+    monkeypatch.setattr(costed, "_direct_attempt", lambda *args: None)  # the costed optimum cannot be braked
     with pytest.raises(StopIteration):
-        costed.plan_costed(None, "feasibility", None, None, None, None, None)
+        costed.plan_costed(None, "feasibility", None, None, None, None, NO_DEADLINE)
     assert made["args"][0] == "feasibility" and made["args"][-1] == costed.FEASIBILITY_RESOLVE_ITERATIONS
     assert 0 < costed.FEASIBILITY_RESOLVE_ITERATIONS < 496
 
