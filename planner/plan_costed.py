@@ -14,6 +14,7 @@ and time remains."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,11 +88,13 @@ class CostDescent:
                 "refused; a step keeps the meeting time and is kept only if the stabilization stays feasible)")
 
 
-def plan_costed(planner: PhasePlanner, feasibility: PhasePlanner, state: TargetState, warm: PlanParameters | None,
-                scan: ScanOnDemand, motion: TargetMotion, deadline: Deadline) -> CostDescent:
+def plan_costed(planner: PhasePlanner, feasibility: Callable[[], PhasePlanner], state: TargetState,
+                warm: PlanParameters | None, scan: ScanOnDemand, motion: TargetMotion,
+                deadline: Deadline) -> CostDescent:
     """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): the costed approach's own
-    optimum, kept if it can be braked; else ``feasibility`` (the same scenario without approach costs) finds a
-    stabilized grasp, warm from ``warm`` when given; then the descent from the grasp kept."""
+    optimum, kept if it can be braked; else the planner ``feasibility()`` gives (the same scenario without approach
+    costs, called only then) finds a stabilized grasp, warm from ``warm`` when given; then the descent from the
+    grasp kept."""
     timings_s = {"approach_s": 0.0, "stabilization_s": 0.0}
     direct = _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(deadline), timings_s)
     if direct is not None:
@@ -101,7 +104,7 @@ def plan_costed(planner: PhasePlanner, feasibility: PhasePlanner, state: TargetS
                           cost, cost, first_grasp="the costed approach's own optimum")
         scale = np.ones(len(TRACKING_NODES))  # no rate was tightened
     else:
-        search = GraspSearch(feasibility, state, warm, scan, motion, deadline, FEASIBILITY_RESOLVE_ITERATIONS)
+        search = GraspSearch(feasibility(), state, warm, scan, motion, deadline, FEASIBILITY_RESOLVE_ITERATIONS)
         candidate, stab = search.run()
         found = search.timings_s()
         out = CostDescent(candidate, stab, {k: timings_s[k] + found[k] for k in timings_s},

@@ -94,7 +94,7 @@ class _Direct:
     feasibility GraspSearch that records how it was made and returns a grasp at cost 0.5."""
 
     def __init__(self, monkeypatch, braked: bool, cost: float = 1e-9) -> None:
-        self.approach_calls, self.searches = [], []
+        self.approach_calls, self.searches, self.feasibility_built = [], [], False
         stab = SimpleNamespace(success=braked, params=np.zeros(3), solve_time_s=2.0)
         self.app = SimpleNamespace(success=True, cost=cost, solve_time_s=3.0, base_offset_m=np.zeros(2))
         self.candidate = SimpleNamespace(app=self.app, tracking=SimpleNamespace(peak_rate_demand=1.0),
@@ -127,7 +127,11 @@ class _Direct:
         return self.app
 
     def plan(self, deadline: Deadline = NO_DEADLINE) -> costed.CostDescent:
-        return costed.plan_costed(self.planner, "feasibility", None, None, "scan", None, deadline)
+        return costed.plan_costed(self.planner, self.feasibility, None, None, "scan", None, deadline)
+
+    def feasibility(self) -> str:
+        self.feasibility_built = True
+        return "feasibility"
 
 
 def test_a_braked_costed_optimum_needs_no_feasibility_plan(monkeypatch):
@@ -135,7 +139,8 @@ def test_a_braked_costed_optimum_needs_no_feasibility_plan(monkeypatch):
     feasibility stage cost 68-99 s at some flat spins and its grasp is then dropped anyway)."""
     d = _Direct(monkeypatch, braked=True)
     out = d.plan()
-    assert d.searches == [] and out.candidate is d.candidate and out.cost_start == out.cost_end == 1e-9
+    assert d.searches == [] and not d.feasibility_built  # not even built (1.9 s of a cold plan)
+    assert out.candidate is d.candidate and out.cost_start == out.cost_end == 1e-9
     assert d.approach_calls == [("costed NLP", costed.COSTED_APPROACH_ITERATIONS, NO_DEADLINE)]
     assert out.timings_s == {"approach_s": 3.0, "stabilization_s": 2.0}
     assert "no feasibility plan needed" in out.notes[0] and "at the costed approach's own optimum" in out.notes[-1]

@@ -140,7 +140,7 @@ def test_a_costed_plans_feasibility_stage_caps_its_re_solves(monkeypatch):
     monkeypatch.setattr(costed, "GraspSearch", Search)
     monkeypatch.setattr(costed, "_direct_attempt", lambda *args: None)  # the costed optimum cannot be braked
     with pytest.raises(StopIteration):
-        costed.plan_costed(None, "feasibility", None, None, None, None, NO_DEADLINE)
+        costed.plan_costed(None, lambda: "feasibility", None, None, None, None, NO_DEADLINE)
     assert made["args"][0] == "feasibility" and made["args"][-1] == costed.FEASIBILITY_RESOLVE_ITERATIONS
     assert 0 < costed.FEASIBILITY_RESOLVE_ITERATIONS < 496
 
