@@ -30,7 +30,6 @@ from planner.phases.approach_solve import (
     solve_approach_near,
 )
 from planner.phases.stabilization import StabilizationSolution
-from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_grasps import (
     RATE_DEMAND_TOLERATED,
     SCREEN_BUDGET,
@@ -38,6 +37,7 @@ from planner.plan_grasps import (
     GraspCandidate,
     GraspSearch,
     PhasePlanner,
+    untightened_speed_scale,
 )
 from planner.plan_parameters import PlanParameters
 
@@ -96,14 +96,9 @@ def plan_costed(planner: PhasePlanner, feasibility: Callable[[], PhasePlanner], 
     costs, called only then) finds a stabilized grasp, warm from ``warm`` when given; then the descent from the
     grasp kept."""
     timings_s = {"approach_s": 0.0, "stabilization_s": 0.0}
-    direct = _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(deadline), timings_s)
-    if direct is not None:
-        candidate, stab, cost = direct
-        out = CostDescent(candidate, stab, timings_s, ["costed plan: the costed approach's own optimum can be braked: "
-                                                       "it is kept (no feasibility plan needed)"],
-                          cost, cost, first_grasp="the costed approach's own optimum")
-        scale = np.ones(len(TRACKING_NODES))  # no rate was tightened
-    else:
+    out = _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(deadline), timings_s)
+    scale = untightened_speed_scale()
+    if out is None:
         search = GraspSearch(feasibility(), state, warm, scan, motion, deadline, FEASIBILITY_RESOLVE_ITERATIONS)
         candidate, stab = search.run()
         found = search.timings_s()
@@ -129,11 +124,11 @@ def _direct_deadline(deadline: Deadline) -> Deadline:
 
 def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
                     motion: TargetMotion, deadline: Deadline,
-                    timings_s: dict[str, float]) -> tuple[GraspCandidate, StabilizationSolution, float] | None:
+                    timings_s: dict[str, float]) -> CostDescent | None:
     """The costed approach NLP as it stands (its optimum over every meeting time, the paper's sequence) within
     :data:`COSTED_APPROACH_ITERATIONS`, its grasp tracked and braked within :data:`STABILIZATION_BUDGET` after
-    the screen: ``(grasp, stabilization, cost)`` when that succeeds (scenario I), else None (scenario II: no ±10 N·m
-    braking from there; a tracking that asks too much is not repaired here); its solve times go to ``timings_s``."""
+    the screen: the descent's start when that succeeds (scenario I), else None (scenario II: no ±10 N·m braking from
+    there; a tracking that asks too much is not repaired here); its solve times are added to ``timings_s``."""
     if deadline.passed:
         return None
     app = solve_approach(planner.approach, state, None if warm is None else warm.approach, scan=scan,
@@ -147,7 +142,11 @@ def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParamet
     stab = candidate.stabilize(None if warm is None else warm.stabilization_params, STABILIZATION_BUDGET,
                                SCREEN_BUDGET, deadline)
     timings_s["stabilization_s"] += stab.solve_time_s
-    return (candidate, stab, app.cost) if stab.success else None
+    if not stab.success:
+        return None
+    return CostDescent(candidate, stab, timings_s, ["costed plan: the costed approach's own optimum can be braked: it "
+                                                    "is kept (no feasibility plan needed)"],
+                       app.cost, app.cost, first_grasp="the costed approach's own optimum")
 
 
 def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent,

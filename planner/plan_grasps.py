@@ -72,6 +72,11 @@ APPROACH_RETRY_MIN = 60
 MEETING_TIME_BOX_S = MIN_SEPARATION_S / 2
 
 
+def untightened_speed_scale() -> NDArray[np.float64]:
+    """The scale of the approach's tracking-rate bounds, per tracking segment, before any is tightened: all 1."""
+    return np.ones(len(TRACKING_NODES))
+
+
 def approach_retry_budget(first_iterations: int) -> int:
     """IPOPT iterations for the approach solve of a retry, from the first approach's iteration count."""
     return max(APPROACH_RETRY_MIN, APPROACH_RETRY_FACTOR * first_iterations)
@@ -148,7 +153,7 @@ class GraspSearch:
         self.planner, self.state, self.warm, self.scan, self.motion = planner, state, warm, scan, motion
         self.deadline, self.resolve_iterations = deadline, resolve_iterations
         # of the approach's tracking-rate bounds, per tracking segment; tightened within this plan
-        self.tracking_speed_scale = np.ones(len(TRACKING_NODES))
+        self.tracking_speed_scale = untightened_speed_scale()
         self.notes: list[str] = []
         self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
         self.stabilization_s = 0.0  # the phase's wall time: NLP builds (if new) and solves [s]

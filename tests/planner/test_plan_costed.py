@@ -147,12 +147,14 @@ def test_a_braked_costed_optimum_needs_no_feasibility_plan(monkeypatch):
 
 
 def test_an_unbraked_costed_optimum_falls_back_to_the_feasibility_plan(monkeypatch):
-    """Scenario II: the costed optimum cannot be braked; the feasibility stage (its re-solves capped) gives the grasp
-    the descent starts from, and the costed optimum is not solved a second time."""
+    """Scenario II: the costed optimum cannot be braked; the feasibility stage gives the grasp the descent starts
+    from, and the costed optimum is not solved a second time. The feasibility stage caps its re-solves: with tightened
+    rates they ran 496-759 iterations (68-99 s) at scenario I flat spins."""
     d = _Direct(monkeypatch, braked=False)
     out = d.plan()
     assert len(d.approach_calls) == 1 and len(d.searches) == 1
     assert d.searches[0][0] == "feasibility" and d.searches[0][-1] == costed.FEASIBILITY_RESOLVE_ITERATIONS
+    assert 0 < costed.FEASIBILITY_RESOLVE_ITERATIONS < 496
     assert out.cost_start == out.cost_end == pytest.approx(0.5)
     assert out.timings_s == {"approach_s": 13.0, "stabilization_s": 22.0}
     assert "feasibility note" in out.notes and "at the feasibility plan's grasp" in out.notes[-1]
@@ -166,6 +168,15 @@ def test_the_costed_optimum_gets_half_of_a_bounded_budget(monkeypatch):
     d.plan()
     bounded, unbounded = d.approach_calls[0][2], d.approach_calls[1][2]
     assert bounded.remaining_s() == pytest.approx(50.0, abs=0.5) and not unbounded.bounded
+
+
+def test_a_spent_budget_solves_no_costed_optimum(monkeypatch):
+    """The budget already spent (a build point at its timeout): no costed solve starts, and the feasibility search,
+    which ends at once past its deadline with the unsolved grasp it has, still gives the answer."""
+    d = _Direct(monkeypatch, braked=True)
+    out = d.plan(Deadline(0.0))
+    assert d.approach_calls == [] and len(d.searches) == 1 and d.feasibility_built
+    assert out.timings_s == {"approach_s": 10.0, "stabilization_s": 20.0} and "feasibility note" in out.notes
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from planner.config.scenario import load_scenario
-from planner.deadline import NO_DEADLINE
 from planner.model.target_state import TargetState
 from planner.phases.approach_solve import SINGULARITY_CLEARANCE_RAD, _one_side_of_singularities, solve_approach
 from planner.phases.tracking_profile import TRACKING_NODES, node_segment
@@ -121,28 +120,6 @@ def test_a_rate_excess_tightens_only_its_own_tracking_segment(planner_II, monkey
     assert np.allclose(scales[0], [TIGHTENING_MARGIN / 2.0, 1.0, 1.0])
     assert "tracking segment 1" in search.notes[0]
     assert iteration_caps == [150]  # a costed plan's feasibility stage caps it (planner.plan_costed)
-
-
-def test_a_costed_plans_feasibility_stage_caps_its_re_solves(monkeypatch):
-    """Its re-solves with tightened rates ran 496-759 iterations (68-99 s) at scenario I flat spins whose costed
-    approach, solved next, needed none: the feasibility stage's GraspSearch gets FEASIBILITY_RESOLVE_ITERATIONS."""
-    import planner.plan_costed as costed
-
-    made = {}
-
-    class Search:
-        def __init__(self, *args, **kwargs):
-            made["args"] = args
-
-        def run(self):
-            raise StopIteration  # the arguments are all this test reads
-
-    monkeypatch.setattr(costed, "GraspSearch", Search)
-    monkeypatch.setattr(costed, "_direct_attempt", lambda *args: None)  # the costed optimum cannot be braked
-    with pytest.raises(StopIteration):
-        costed.plan_costed(None, lambda: "feasibility", None, None, None, None, NO_DEADLINE)
-    assert made["args"][0] == "feasibility" and made["args"][-1] == costed.FEASIBILITY_RESOLVE_ITERATIONS
-    assert 0 < costed.FEASIBILITY_RESOLVE_ITERATIONS < 496
 
 
 def test_a_start_delay_just_outside_the_window_is_read_inside_it(planner_II):
