@@ -148,8 +148,8 @@ def _write_atomically(path: str | Path, write: Callable[[Path], None]) -> None:
 
 
 def write_json(path: str | Path, document: dict[str, Any]) -> None:
-    """Write the plan JSON atomically."""
-    _write_atomically(path, lambda tmp: tmp.write_text(json.dumps(document, indent=1), encoding="utf-8"))
+    """Write the plan JSON atomically, compact (an indented dump takes the slow pure-Python encoder)."""
+    _write_atomically(path, lambda tmp: tmp.write_text(json.dumps(document), encoding="utf-8"))
 
 
 CSV_COLUMNS = (("t", 1), ("q", 7), ("qd", 7), ("base_position", 3), ("base_wxyz", 4), ("ee_position", 3),

@@ -128,7 +128,7 @@ class ApproachProblem:
         self.budget = FeasibilityStop("approach_budget", self.n_w + self.n_extra, len(self.lbg),
                                       self.parameter_layout.size, slice(0, 0), 0.0, 0.0)
         self._options = ipopt_options(sc.solver) | {"iteration_callback": self.budget}
-        self.solver = ipopt_solver("approach", self._nlp, self._options)
+        self._solver: ca.Function | None = None
         self._cold_solver: ca.Function | None = None
         self._objective: ca.Function | None = None
         dist_bounds = self.lbg[self.constraints.slice("collision")]
@@ -264,6 +264,14 @@ class ApproachProblem:
         self.decision.add("distance_slack", 1, -10.0, 10.0)
         self.constraints.add_expression("scaled_distance", self.scaled_cb(ca.vertcat(*all_poses)) - s, 0.0, np.inf)
         return cost - c.min_distance * s, [s]
+
+    @property
+    def solver(self) -> ca.Function:
+        """The NLP's solver for warm starts (a solved neighbour, a re-solve, a costed step). Built on first use:
+        building a solver takes ~1 s, and a plan or a query may need only the cold one, or none."""
+        if self._solver is None:
+            self._solver = ipopt_solver("approach", self._nlp, self._options)
+        return self._solver
 
     @property
     def cold_solver(self) -> ca.Function:

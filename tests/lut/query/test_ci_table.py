@@ -124,6 +124,17 @@ def test_query_at_a_grid_point_reproduces_the_built_plan(table_query):
                                    stored.costs["peak_grasp_torque_nm"], atol=1e-9)
 
 
+def test_a_query_that_only_re_simulates_builds_no_solver():
+    """Building an IPOPT solver costs about a second: a query answered from the table alone builds none (the
+    approach's warm and cold solvers, and the stabilization NLP, are built on first use)."""
+    tq = TableQuery(GOLDEN)
+    result = tq.query(tq.grid.state(0), budget_s=1.0)
+    assert result.source == "interpolated" and result.report.feasible
+    approach = tq.planner.approach
+    assert approach._solver is None and approach._cold_solver is None and tq.planner._stabilization is None
+    assert approach.solver is approach.solver and approach.cold_solver is not approach.solver  # built once each
+
+
 def test_query_between_grid_points_interpolates_consistent_corners(table_query):
     tq = table_query
     state = tq.grid.state_at([3.8, 90.0, 7.0])
