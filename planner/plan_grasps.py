@@ -31,7 +31,7 @@ from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
-from planner.phases.approach_solve import solve_approach
+from planner.phases.approach_solve import COLD_START_ITERATIONS, solve_approach, solve_approach_from_base
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
@@ -70,11 +70,31 @@ APPROACH_RETRY_MIN = 60
 # tried: free, the NLP drifted back to the grasp that had just failed (scenario II: grasps at 69.9, 70.0 and 68.9 s from
 # guesses 6 s apart). The first approach stays free: boxed, scenario I's default state found no approach at all
 MEETING_TIME_BOX_S = MIN_SEPARATION_S / 2
+# once its scanned meeting times are spent, a cold plan tries the chaser waiting elsewhere in its base-offset box:
+# θ_b(0) pinned at each bound and the middle of each axis (a 3 × 3 grid), farthest from the first grasp's first (a
+# nearby base repeats the geometry that failed), skipping those within BASE_OFFSET_GAP_M of a grasp tried: where the
+# chaser waits decides where the braked target swings
+BASE_OFFSETS_PER_AXIS = 3
+BASE_OFFSET_GAP_M = 0.25
+# scanned guesses an approach from another base offset starts from (within COLD_START_ITERATIONS), and how far from
+# that offset θ_b(0) may end [m] per axis (half the grid's spacing or less: the next offset is another region)
+BASE_OFFSET_STARTS = 1
+BASE_OFFSET_BOX_M = 0.4
 
 
 def untightened_speed_scale() -> NDArray[np.float64]:
     """The scale of the approach's tracking-rate bounds, per tracking segment, before any is tightened: all 1."""
     return np.ones(len(TRACKING_NODES))
+
+
+def other_base_offsets(scenario: Scenario, first_m: Array) -> list[Array]:
+    """θ_b(0) [m] (x, z) of the grid over the scenario's base-offset box, farthest from ``first_m`` first (ties: in
+    grid order), those within :data:`BASE_OFFSET_GAP_M` of it left out."""
+    (x_lo, x_hi), (z_lo, z_hi) = scenario.base_offset_bounds_m
+    grid = [np.array([x, z]) for x in np.unique(np.linspace(x_lo, x_hi, BASE_OFFSETS_PER_AXIS))
+            for z in np.unique(np.linspace(z_lo, z_hi, BASE_OFFSETS_PER_AXIS))]
+    away = [b for b in grid if np.linalg.norm(b - first_m) >= BASE_OFFSET_GAP_M]
+    return sorted(away, key=lambda b: -float(np.linalg.norm(b - first_m)))
 
 
 def approach_retry_budget(first_iterations: int) -> int:
@@ -155,6 +175,8 @@ class GraspSearch:
         # of the approach's tracking-rate bounds, per tracking segment; tightened within this plan
         self.tracking_speed_scale = untightened_speed_scale()
         self.notes: list[str] = []
+        self._base_offsets: list[Array] = []  # where the chaser may wait for the grasps still to try (cold plans)
+        self._tried_offsets: list[Array] = []  # θ_b(0) of the grasps tried so far [m]
         self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
         self.stabilization_s = 0.0  # the phase's wall time: NLP builds (if new) and solves [s]
 
@@ -172,6 +194,8 @@ class GraspSearch:
         app = self._solve_approach(self.warm.approach if self.warm is not None else None)
         first = self._candidate(app)
         self.approach_s += first.app.solve_time_s
+        if self.warm is None:
+            self._base_offsets = other_base_offsets(self.planner.scenario, first.app.base_offset_m)
         screened_out: list[GraspCandidate] = []
         for candidate in self._grasps(first):
             more = self._another_grasp_remains(candidate)
@@ -182,7 +206,8 @@ class GraspSearch:
                 return self._answer(*last)
             if last[1].status == SolveOutcome.SCREENED_OUT:
                 screened_out.append(candidate)
-            self._note_failure(*last, "trying the approach's next guess" if more else "")
+            self._note_failure(*last, ("trying the approach's next guess" if self._scanned_guess_remains(candidate)
+                                       else "trying another grasp") if more else "")
         for candidate in screened_out:
             if self.deadline.passed:
                 break
@@ -218,15 +243,21 @@ class GraspSearch:
                           + (f"; {then}" if then else ""))
 
     def _another_grasp_remains(self, candidate: GraspCandidate) -> bool:
+        """True when a cold plan has a grasp to try after ``candidate``: a next scanned guess or another base offset."""
+        return self._scanned_guess_remains(candidate) or self._next_base_offset(consume=False) is not None
+
+    def _scanned_guess_remains(self, candidate: GraspCandidate) -> bool:
         """True when a cold plan's approach has a next scanned guess after ``candidate``'s."""
         app = candidate.app
         return self.warm is None and app.success and 0 <= app.start_guess < GRASP_GUESSES - 1
 
     def _grasps(self, first: GraspCandidate) -> Iterator[GraspCandidate]:
-        """``first``, then the grasps the approach reaches from its next scanned guesses while one remains."""
+        """``first``, then the grasps the approach reaches from its next scanned guesses while one remains, then
+        those it reaches with the chaser waiting elsewhere (:func:`other_base_offsets`)."""
         candidate, tried = first, []
+        self._tried_offsets.append(first.app.base_offset_m)
         yield candidate
-        while self._another_grasp_remains(candidate) and not self.deadline.passed:
+        while self._scanned_guess_remains(candidate) and not self.deadline.passed:
             tried.append(candidate.app.start_delay_s)
             nxt = self._solve_approach(None, max_starts=GRASP_GUESSES, skip_guesses=candidate.app.start_guess + 1,
                                        max_iterations=approach_retry_budget(first.app.iterations),
@@ -234,10 +265,38 @@ class GraspSearch:
             if not nxt.success:
                 self.approach_s += nxt.solve_time_s
                 self.notes.append(f"the approach from its next guesses failed ({nxt.status})")
-                return
+                break
             candidate = self._candidate(nxt)
             self.approach_s += candidate.app.solve_time_s
+            self._tried_offsets.append(candidate.app.base_offset_m)
             yield candidate
+        yield from self._grasps_from_other_bases(COLD_START_ITERATIONS)
+
+    def _grasps_from_other_bases(self, max_iterations: int) -> Iterator[GraspCandidate]:
+        """The grasps the approach reaches with θ_b(0) pinned at the next base offsets, each approach within
+        ``max_iterations``."""
+        while not self.deadline.passed and (offset := self._next_base_offset(consume=True)) is not None:
+            app = solve_approach_from_base(self.planner.approach, self.state, offset, BASE_OFFSET_STARTS,
+                                           self.tracking_speed_scale, self.deadline, max_iterations, BASE_OFFSET_BOX_M)
+            self._tried_offsets.append(offset)
+            where = f"θ_b(0) = ({offset[0]:+.2f}, {offset[1]:+.2f}) ± {BASE_OFFSET_BOX_M:g} m"
+            if not app.success:
+                self.approach_s += app.solve_time_s
+                self.notes.append(f"the approach with the chaser waiting at {where} failed ({app.status})")
+                continue
+            self.notes.append(f"a grasp with the chaser waiting at {where}")
+            candidate = self._candidate(app)
+            self.approach_s += candidate.app.solve_time_s
+            yield candidate
+
+    def _next_base_offset(self, consume: bool) -> Array | None:
+        """The next base offset still to try (removed from the list when ``consume``): offsets within
+        :data:`BASE_OFFSET_GAP_M` of a grasp tried are dropped."""
+        self._base_offsets = [b for b in self._base_offsets
+                              if all(np.linalg.norm(b - t) >= BASE_OFFSET_GAP_M for t in self._tried_offsets)]
+        if not self._base_offsets:
+            return None
+        return self._base_offsets.pop(0) if consume else self._base_offsets[0]
 
     def _solve_approach(self, warm: ApproachParameters | None, **options: object) -> ApproachSolution:
         """The approach NLP for this plan's state, scan and tracking-rate scale."""

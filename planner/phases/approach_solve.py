@@ -17,7 +17,7 @@ from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
-from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, initial_guesses
+from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, reach_scan
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_parameters import ApproachParameters
 
@@ -170,28 +170,38 @@ def _no_start(problem: ApproachProblem, status: SolveOutcome, base_offset_m: tup
 def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts: int,
                        tracking_speed_scale: float | Array, deadline: Deadline) -> ApproachSolution:
     """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from guesses made for that base."""
+    return solve_approach_from_base(problem, state, problem.scenario.base_offset_guess_m, max_starts,
+                                    tracking_speed_scale, deadline)
+
+
+def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_offset_m: Array, max_starts: int,
+                             tracking_speed_scale: float | Array, deadline: Deadline = NO_DEADLINE,
+                             max_iterations: int | None = None, radius_m: float = 0.0) -> ApproachSolution:
+    """The NLP with θ_b(0) within ``radius_m`` [m] of ``base_offset_m`` [m] (x, z) per axis (0: fixed there), from up
+    to ``max_starts`` guesses scanned for that base, the first success; with ``max_iterations``, each start within
+    :data:`COLD_START_ITERATIONS` and all within ``max_iterations``. Status ``NO_PINNED_START`` when no meeting time
+    is reachable from that base."""
     t0 = time.perf_counter()
-    gx, gz = problem.scenario.base_offset_guess_m
-    pinned = replace(problem.scenario, base_offset_bounds_m=((gx, gx), (gz, gz)))
-    lbw, ubw = _base_pinned_bounds(problem)
-    result, iterations = None, 0
-    for g in initial_guesses(pinned, problem.spline, state, max_starts):
-        result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
-                             deadline=deadline)
-        iterations += result.iterations
-        if result.success or time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed:
-            break
-    if result is None:
-        return _no_start(problem, SolveOutcome.NO_PINNED_START, (gx, gz), time.perf_counter() - t0)
-    return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
-
-
-def _base_pinned_bounds(problem: ApproachProblem) -> tuple[Array, Array]:
-    """The problem's bounds ``(lbw, ubw)`` (copies) with θ_b(0) fixed at the scenario's base-offset guess."""
+    bx, bz = (float(v) for v in base_offset_m)
+    pinned = replace(problem.scenario, base_offset_bounds_m=((bx, bx), (bz, bz)),
+                     base_offset_guess_m=np.array([bx, bz]))
     lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
     base = problem.decision.slice("base_offset_m")
-    lbw[base] = ubw[base] = problem.scenario.base_offset_guess_m
-    return lbw, ubw
+    lbw[base] = np.maximum(lbw[base], np.array([bx, bz]) - radius_m)
+    ubw[base] = np.minimum(ubw[base], np.array([bx, bz]) + radius_m)
+    scan = reach_scan(pinned, problem.spline, state, max_starts)
+    result, iterations = None, 0
+    for g in scan.guesses if scan.reachable else []:
+        limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
+        result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
+                             max_iterations=limit, deadline=deadline)
+        iterations += result.iterations
+        if result.success or time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed \
+                or (max_iterations is not None and iterations >= max_iterations):
+            break
+    if result is None:
+        return _no_start(problem, SolveOutcome.NO_PINNED_START, (bx, bz), time.perf_counter() - t0)
+    return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
 
 
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,

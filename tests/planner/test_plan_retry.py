@@ -15,13 +15,14 @@ import numpy as np
 import pytest
 
 import planner.phases.approach_guess as approach_guess_module
+import planner.phases.approach_solve as approach_solve_module
 import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
 from planner.deadline import Deadline
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
-from planner.plan_grasps import SCREEN_BUDGET
+from planner.plan_grasps import BASE_OFFSET_BOX_M, BASE_OFFSET_GAP_M, SCREEN_BUDGET, other_base_offsets
 from planner.verify.verifier import verify
 
 SCENARIO_II = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "scenario_II.toml"
@@ -84,16 +85,34 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     assert len(scans) == 2
 
 
+def _failed_approaches_from_other_bases(monkeypatch, tried: list) -> None:
+    """Every approach with the chaser waiting elsewhere fails at once (recorded in ``tried``): the scanned grasps'
+    control flow in seconds."""
+
+    def failed(problem, state, offset, *args, **kwargs):
+        tried.append(np.array(offset))
+        return approach_solve_module._no_start(problem, SolveOutcome.NO_PINNED_START, tuple(offset), 0.0)
+
+    monkeypatch.setattr(plan_grasps_module, "solve_approach_from_base", failed)
+
+
 def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(planner_II, monkeypatch):
     sc, planner = planner_II
     calls: list[tuple[int, int | None, float]] = []
     problems = []
+    bases: list = []
+    _failed_approaches_from_other_bases(monkeypatch, bases)
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES, problems))
     plan = planner.plan(sc.target_state.as_state())
     # every grasp under the budget (scanned guesses in order), then the first again without it
     assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
     guesses = [c[0] for c in calls[:-1]]
     assert guesses[0] == 0 and guesses == sorted(set(guesses)) and guesses[-1] <= GRASP_GUESSES - 1
+    # then every other base offset of the box, nearest the first grasp's first, each said in the notes
+    expected = other_base_offsets(sc, plan.approach.base_offset_m)
+    order = [next(k for k, e in enumerate(expected) if np.array_equal(e, b)) for b in bases]
+    assert len(bases) >= 4 and order == sorted(order)  # in order; those near a scanned grasp's θ_b(0) left out
+    assert sum("the chaser waiting at" in note for note in plan.notes) == len(bases)
     assert calls[-1] == (0, None, calls[0][2])  # the first grasp, whole
     assert problems[-1] is problems[0]  # its NLPs kept by the planner, not built again
     assert plan.approach.start_guess == 0 and plan.t_grasp == pytest.approx(calls[0][2])
@@ -130,6 +149,7 @@ def test_screened_out_grasps_wait_until_no_grasp_passed_the_screen(planner_II, m
     # screened-out grasps in order under the budget, then the first grasp whole
     calls.clear()
     screens.clear()
+    monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [])  # the scanned grasps alone
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES, screens=screens,
                                                                pass_screen_from_guess=GRASP_GUESSES))
     plan = planner.plan(sc.target_state.as_state())
@@ -184,3 +204,46 @@ def test_a_plan_begun_past_its_deadline_is_still_a_plan_to_verify(planner_II, mo
     report = verify(plan)  # a whole trajectory: verify judges it like any other
     assert report.t_grasp_s == pytest.approx(plan.t_grasp)
     assert np.all(np.abs(plan.qd[-1]) < 1e-9)  # the smooth stop ends at rest
+
+
+def test_other_base_offsets_cover_the_box_nearest_first():
+    sc = load_scenario(SCENARIO_II)
+    (x_lo, x_hi), (z_lo, z_hi) = sc.base_offset_bounds_m
+    first = np.array([0.5 * (x_lo + x_hi) + 0.05, 0.5 * (z_lo + z_hi) - 0.02])  # beside the box's centre
+    offsets = other_base_offsets(sc, first)
+    assert len(offsets) == 8  # the 3 × 3 grid but the centre, within the gap of the first grasp
+    assert all(x_lo <= b[0] <= x_hi and z_lo <= b[1] <= z_hi for b in offsets)
+    distances = [np.linalg.norm(b - first) for b in offsets]
+    assert distances == sorted(distances, reverse=True) and min(distances) >= BASE_OFFSET_GAP_M
+    assert {tuple(b) for b in offsets} == {(x, z) for x in (x_lo, 0.5 * (x_lo + x_hi), x_hi)
+                                          for z in (z_lo, 0.5 * (z_lo + z_hi), z_hi)} - {(0.5 * (x_lo + x_hi),
+                                                                                             0.5 * (z_lo + z_hi))}
+    # at a corner: that corner left out; an axis the scenario pins (min = max) has one value, not three
+    assert len(other_base_offsets(sc, np.array([x_hi, z_hi]))) == 8
+    pinned_x = replace(sc, base_offset_bounds_m=((0.3, 0.3), (z_lo, z_hi)))
+    assert [tuple(b) for b in other_base_offsets(pinned_x, np.array([0.3, z_lo]))] == [
+        (0.3, z_hi), (0.3, 0.5 * (z_lo + z_hi))]
+
+
+def test_once_the_scanned_grasps_fail_the_chaser_waits_elsewhere(planner_II, monkeypatch):
+    """Scanned grasps that cannot be braked: the approach is solved again with θ_b(0) held near another point of the
+    base-offset box, and that grasp, braked, is the plan (the stand-in brakes only the grasps of such a base)."""
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    elsewhere = np.array([0.0, -1.0])
+    monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [elsewhere])
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES + 1))
+    stabilize = GraspCandidate.stabilize
+
+    def brakes_pinned_only(self, *args):
+        result = stabilize(self, *args)
+        return replace(result, success=True, status="stand-in ok") if self.app.start_guess < 0 else result
+
+    monkeypatch.setattr(GraspCandidate, "stabilize", brakes_pinned_only)
+    plan = planner.plan(sc.target_state.as_state())
+    assert plan.stabilization.status == "stand-in ok"
+    # held near it, not merely started there
+    assert np.all(np.abs(plan.approach.base_offset_m - elsewhere) <= BASE_OFFSET_BOX_M + 1e-9)
+    assert plan.approach.success and plan.t_grasp == pytest.approx(calls[-1][2])
+    assert [c[0] for c in calls][-1] == -1 and all(c[0] >= 0 for c in calls[:-1])  # after every scanned grasp
+    assert "a grasp with the chaser waiting at θ_b(0) = (+0.00, -1.00) ± 0.4 m" in plan.notes
