@@ -71,7 +71,7 @@ APPROACH_RETRY_MIN = 60
 # guesses 6 s apart). The first approach stays free: boxed, scenario I's default state found no approach at all
 MEETING_TIME_BOX_S = MIN_SEPARATION_S / 2
 # once its scanned meeting times are spent, a cold plan tries the chaser waiting elsewhere in its base-offset box:
-# θ_b(0) pinned at each bound and the middle of each axis (a 3 × 3 grid), farthest from the first grasp's first (a
+# θ_b(0) held near each bound and the middle of each axis (a 3 × 3 grid), farthest from the first grasp's first (a
 # nearby base repeats the geometry that failed), skipping those within BASE_OFFSET_GAP_M of a grasp tried: where the
 # chaser waits decides where the braked target swings
 BASE_OFFSETS_PER_AXIS = 3
@@ -273,8 +273,8 @@ class GraspSearch:
         yield from self._grasps_from_other_bases(COLD_START_ITERATIONS)
 
     def _grasps_from_other_bases(self, max_iterations: int) -> Iterator[GraspCandidate]:
-        """The grasps the approach reaches with θ_b(0) pinned at the next base offsets, each approach within
-        ``max_iterations``."""
+        """The grasps the approach reaches with θ_b(0) within :data:`BASE_OFFSET_BOX_M` of the next base offsets, each
+        approach within ``max_iterations``."""
         while not self.deadline.passed and (offset := self._next_base_offset(consume=True)) is not None:
             app = solve_approach_from_base(self.planner.approach, self.state, offset, BASE_OFFSET_STARTS,
                                            self.tracking_speed_scale, self.deadline, max_iterations, BASE_OFFSET_BOX_M)

@@ -106,13 +106,21 @@ def solve_approach_near(problem: ApproachProblem, state: TargetState, anchor: Ap
     """The approach NLP warm from ``anchor`` with its meeting time kept (the start delay pinned) and the base offset
     θ_b(0) within ``radius_m`` [m] of the anchor's per axis (``inf``: the scenario's bounds only), within
     ``max_iterations`` IPOPT iterations: a trust-region step of a costed plan (:mod:`planner.plan_costed`)."""
-    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
-    delay, base = problem.decision.slice("start_delay_s"), problem.decision.slice("base_offset_m")
+    lbw, ubw = _base_box(problem, anchor.base_offset_m, radius_m)
+    delay = problem.decision.slice("start_delay_s")
     lbw[delay] = ubw[delay] = anchor.start_delay_s
-    lbw[base] = np.maximum(lbw[base], anchor.base_offset_m - radius_m)
-    ubw[base] = np.minimum(ubw[base], anchor.base_offset_m + radius_m)
     return _solve_once(problem, state, decision_vector(anchor), tracking_speed_scale, lbw, ubw,
                        max_iterations=max_iterations, deadline=deadline)
+
+
+def _base_box(problem: ApproachProblem, centre_m: Array, radius_m: float) -> tuple[Array, Array]:
+    """The problem's bounds ``(lbw, ubw)`` (copies) with θ_b(0) also within ``radius_m`` [m] of ``centre_m`` [m] (x, z)
+    per axis (0: fixed there; ``inf``: the scenario's bounds only)."""
+    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
+    base = problem.decision.slice("base_offset_m")
+    lbw[base] = np.maximum(lbw[base], centre_m - radius_m)
+    ubw[base] = np.minimum(ubw[base], centre_m + radius_m)
+    return lbw, ubw
 
 
 def _meeting_time_box(problem: ApproachProblem, w0: Array, box_s: float | None,
@@ -185,10 +193,7 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     bx, bz = (float(v) for v in base_offset_m)
     pinned = replace(problem.scenario, base_offset_bounds_m=((bx, bx), (bz, bz)),
                      base_offset_guess_m=np.array([bx, bz]))
-    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
-    base = problem.decision.slice("base_offset_m")
-    lbw[base] = np.maximum(lbw[base], np.array([bx, bz]) - radius_m)
-    ubw[base] = np.minimum(ubw[base], np.array([bx, bz]) + radius_m)
+    lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
     scan = reach_scan(pinned, problem.spline, state, max_starts)
     result, iterations = None, 0
     for g in scan.guesses if scan.reachable else []:

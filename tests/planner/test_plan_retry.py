@@ -220,6 +220,8 @@ def test_other_base_offsets_cover_the_box_nearest_first():
                                                                                              0.5 * (z_lo + z_hi))}
     # at a corner: that corner left out; an axis the scenario pins (min = max) has one value, not three
     assert len(other_base_offsets(sc, np.array([x_hi, z_hi]))) == 8
+    pinned_both = replace(sc, base_offset_bounds_m=((0.3, 0.3), (-0.2, -0.2)))
+    assert other_base_offsets(pinned_both, np.array([0.3, -0.2])) == []  # a fixed base: nowhere else to wait
     pinned_x = replace(sc, base_offset_bounds_m=((0.3, 0.3), (z_lo, z_hi)))
     assert [tuple(b) for b in other_base_offsets(pinned_x, np.array([0.3, z_lo]))] == [
         (0.3, z_hi), (0.3, 0.5 * (z_lo + z_hi))]
