@@ -22,7 +22,8 @@ The full run refines every query state whose interpolated plan fails verificatio
 (scenario I / II × flat spin / general tumble) through one ``lutgen plan`` process each under the 100 s budget
 (a process still running 30 s past it is killed), and the same states through ``lutgen query`` on the tables of
 ``--coverage-tables`` (default ``tables/``): up to 2 × 80 runs of up to 100 s, hours on one core.
-Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``.
+Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``. After building a
+table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II_flat_spin``.
 
 ``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
 ``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget, one process
@@ -48,7 +49,7 @@ from typing import Any
 from bench_sections.baseline import baseline
 from bench_sections.builds import builds
 from bench_sections.common import ROOT, Settings, coverage_settings, json_safe, optimal_settings, settings_for
-from bench_sections.coverage import coverage
+from bench_sections.coverage import KINDS, coverage
 from bench_sections.machine import load_average, machine
 from bench_sections.optimal import optimal
 from bench_sections.plans import plans
@@ -70,6 +71,16 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
+
+
+def coverage_kinds(text: str) -> tuple[str, ...]:
+    """An argparse type: coverage kind names, comma-separated, each one of :data:`KINDS`."""
+    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    known = [k.name for k in KINDS]
+    for name in names:
+        if name not in known:
+            raise argparse.ArgumentTypeError(f"unknown coverage kind {name!r} (one of {', '.join(known)})")
+    return names
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -96,6 +107,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--coverage-tables", type=Path, default=None, metavar="DIR",
                     help="coverage: folder of the tables the queries use, matched to each kind by the scenario "
                          "and grid kind they were built for (default: tables/; --trim: tests/data)")
+    ap.add_argument("--coverage-kinds", type=coverage_kinds, default=None, metavar="KIND[,KIND]",
+                    help=f"coverage: only these kinds ({', '.join(k.name for k in KINDS)}; default all)")
+    ap.add_argument("--coverage-queries-only", action="store_true",
+                    help="coverage: the queries on the tables alone, no cold plans (e.g. after building a table)")
     ap.add_argument("--optimal-table", type=Path, default=None, metavar="PATH",
                     help="optimal: the table of optimal plans (default tables/flat_spin_I_energy.h5; --trim: the "
                          "golden table, feasibility-only, so the section only says so)")
@@ -151,7 +166,8 @@ def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> d
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    cov = coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables)
+    cov = coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables,
+                            args.coverage_kinds, not args.coverage_queries_only)
     settings = replace(settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s,
                                     args.plan_with_costs, args.refine_budget_s, cov),
                        optimal=optimal_settings(args.quick, args.trim, args.optimal_table, args.optimal_states))

@@ -345,6 +345,30 @@ def test_summary_tallies_reasons_and_bars_judge_them():
     assert b["query_feasible_all_kinds"]["met"] is None and b["query_feasible_all_kinds"]["enough_states"] is False
 
 
+def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):
+    import bench
+    from bench_sections.common import coverage_settings, settings_for
+
+    commands: list[list[str]] = []
+
+    def fake_run_all(jobs, settings):
+        commands.extend(jobs)
+        return [{"feasible_on_time": True, "wall_s": 1.0, "exit_code": 0, "reasons": []} for _ in jobs]
+
+    monkeypatch.setattr(coverage, "run_all", fake_run_all)
+    args = bench.parse_args(["--coverage-queries-only", "--coverage-kinds", "scenario_II_flat_spin",
+                             "--coverage-states", "2", "--coverage-tables", str(ROOT / "tests" / "data")])
+    cov = coverage_settings(False, False, args.coverage_states, 1, args.coverage_tables, args.coverage_kinds,
+                            not args.coverage_queries_only)
+    c = coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0, cov))
+    assert [cmd[0] for cmd in commands] == ["query", "query"]  # the golden table answers scenario II's flat spins
+    assert c["queries"]["scenario_II_flat_spin"]["feasible_on_time"] == 2
+    assert c["plans"]["scenario_II_flat_spin"]["skipped"] == "--coverage-queries-only"
+    assert c["plans"]["scenario_I_tumble"]["skipped"].startswith("only scenario_II_flat_spin")  # not asked for
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--coverage-kinds", "scenario_III_flat_spin"])
+
+
 def test_tables_are_matched_by_scenario_and_grid_kind(tmp_path, monkeypatch):
     found, lines = coverage_tables.find_tables(ROOT / "tests" / "data", [(k.name, k.scenario, k.motion)
                                                                          for k in coverage.KINDS])

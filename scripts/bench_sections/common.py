@@ -31,7 +31,8 @@ OPTIMAL_TABLE = ROOT / "tables" / "flat_spin_I_energy.h5"  # configs/grids/flat_
 @dataclass(frozen=True)
 class CoverageSettings:
     """The coverage section's sizes: seeded states per kind, which kinds (None: all four), the budget (s) of
-    each plan and query, the hard kill after budget + ``kill_margin_s`` (s), processes at a time, the tables."""
+    each plan and query, the hard kill after budget + ``kill_margin_s`` (s), processes at a time, the tables,
+    and whether the cold plans run (False: the queries alone, e.g. after a new table)."""
 
     states: int
     kinds: tuple[str, ...] | None
@@ -39,6 +40,7 @@ class CoverageSettings:
     kill_margin_s: float
     jobs: int
     tables: Path
+    plans: bool = True
 
 
 @dataclass(frozen=True)
@@ -92,15 +94,17 @@ def optimal_settings(quick: bool, trim: bool, table: Path | None, states: int | 
                            COVERAGE_BUDGET_S, 600.0)
 
 
-def coverage_settings(quick: bool, trim: bool, states: int | None, jobs: int, tables: Path | None) -> CoverageSettings:
+def coverage_settings(quick: bool, trim: bool, states: int | None, jobs: int, tables: Path | None,
+                      kinds: tuple[str, ...] | None = None, plans: bool = True) -> CoverageSettings:
     """Full: 20 states of each kind (the issue's bar); quick: 1 of each; trim: 1 of one kind, a 2 s budget, the
-    golden table (it proves the code path in seconds: the plan ends over budget)."""
+    golden table (it proves the code path in seconds: the plan ends over budget). ``kinds`` (None: all four, or
+    trim's one) and ``plans`` (False: queries only) narrow any mode."""
     if trim:
-        return CoverageSettings(1 if states is None else states, ("scenario_II_flat_spin",), 2.0, 10.0, jobs,
-                                GOLDEN_TABLE.parent if tables is None else tables)
+        return CoverageSettings(1 if states is None else states, kinds or ("scenario_II_flat_spin",), 2.0, 10.0, jobs,
+                                GOLDEN_TABLE.parent if tables is None else tables, plans)
     default_states = 1 if quick else 20
-    return CoverageSettings(default_states if states is None else states, None, COVERAGE_BUDGET_S, 30.0, jobs,
-                            COVERAGE_TABLES if tables is None else tables)
+    return CoverageSettings(default_states if states is None else states, kinds, COVERAGE_BUDGET_S, 30.0, jobs,
+                            COVERAGE_TABLES if tables is None else tables, plans)
 
 
 def settings_for(quick: bool, trim: bool, seed: int, plan_runs: int | None, plan_cap_s: float,

@@ -134,10 +134,12 @@ def coverage(settings: Settings) -> dict[str, Any]:
     queries: dict[str, Any] = {"tables_dir": relative(c.tables), "tables": table_notes}
     for kind in KINDS:
         if c.kinds is not None and kind.name not in c.kinds:
-            plans[kind.name] = queries[kind.name] = skipped(f"--trim: only {', '.join(c.kinds)}", SUMMARY_KEYS)
+            reason = f"only {', '.join(c.kinds)} (--trim or --coverage-kinds)"
+            plans[kind.name] = queries[kind.name] = skipped(reason, SUMMARY_KEYS)
             continue
         states = kind_states(kind, c.states, settings.seed)
-        plans[kind.name] = summary(run_all([plan_args(kind, s, c.budget_s) for s in states], settings))
+        plans[kind.name] = (summary(run_all([plan_args(kind, s, c.budget_s) for s in states], settings)) if c.plans
+                            else skipped("--coverage-queries-only", SUMMARY_KEYS))
         table = tables.get(kind.name)
         if table is None:
             queries[kind.name] = skipped(f"no table for {kind.name} in {relative(c.tables)}/", SUMMARY_KEYS)
