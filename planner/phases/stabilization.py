@@ -298,10 +298,16 @@ class StabilizationProblem:
         if self._dense is None:
             P = ca.MX.sym("P", self.n_params)
             par = ca.MX.sym("par", self.parameter_layout.size)
-            times = np.linspace(0.0, self.scenario.phases.stabilization_s, DENSE_FACTOR * self.k + 1)
             self._dense = ca.Function("stabilization_dense_torques", [P, par],
-                                      [self.at_times(P, par, np.union1d(times, self.via_times_s), False).torques])
+                                      [self.at_times(P, par, self.dense_times_s, False).torques])
         return self._dense
+
+    @property
+    def dense_times_s(self) -> Array:
+        """The instants [s into the phase] :meth:`dense_torques` evaluates: DENSE_FACTOR times as many as the via
+        points, evenly spaced, and the via points."""
+        uniform = np.linspace(0.0, self.scenario.phases.stabilization_s, DENSE_FACTOR * self.k + 1)
+        return np.union1d(uniform, self.via_times_s)
 
     def parameters(self, grasp: GraspState) -> Array:
         """The NLP's parameter vector for ``grasp``: its state, momentum and geometry."""

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from planner.deadline import NO_DEADLINE, Deadline
 from planner.nlp.outcome import SolveOutcome
+from planner.phases.sampled_peak import peak_magnitude
 from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
 
 Array = NDArray[np.float64]
@@ -77,7 +78,8 @@ def _coarse_to_fine(problem: StabilizationProblem, grasp: GraspState, max_iterat
 def _held_between_via_points(problem: StabilizationProblem, grasp: GraspState, solved: StabilizationSolution,
                              max_iterations: int | None, deadline: Deadline) -> StabilizationSolution:
     """``solved``, once its grasp torque holds the limit between the via points too (the NLP's own model at
-    :data:`~planner.phases.stabilization.DENSE_FACTOR` times as many instants); where it peaks above, the solve is
+    :data:`~planner.phases.stabilization.DENSE_FACTOR` times as many instants, the peak between them found by a
+    local cubic, :func:`~planner.phases.sampled_peak.peak_magnitude`); where it peaks above, the solve is
     repeated warm with the via-point torque bound lowered by the overshoot, up to :data:`TORQUE_ROUNDS` times; still
     above, it is a failure (status ``Torque_Over_Limit_Between_Via_Points``)."""
     limit = problem.torque_limit
@@ -87,7 +89,8 @@ def _held_between_via_points(problem: StabilizationProblem, grasp: GraspState, s
     for round_ in range(TORQUE_ROUNDS + 1):
         if not solved.success:
             return solved
-        peak = float(np.abs(np.asarray(problem.dense_torques()(solved.params, par))).max())
+        torques = np.asarray(problem.dense_torques()(solved.params, par)).reshape(-1, 3)
+        peak = peak_magnitude(problem.dense_times_s, torques)
         if peak <= limit:
             return solved
         left = None if max_iterations is None else max_iterations - solved.iterations

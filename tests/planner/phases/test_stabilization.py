@@ -246,6 +246,7 @@ def test_the_dense_torques_hold_the_nlps_own_at_its_via_points(problem, grasp):
     at_via = np.asarray(problem.outputs(P, par)[0]).reshape(-1, 3)
     T = problem.scenario.phases.stabilization_s
     times = np.union1d(np.linspace(0.0, T, DENSE_FACTOR * problem.k + 1), problem.via_times_s)
+    np.testing.assert_array_equal(problem.dense_times_s, times)
     dense = np.asarray(problem.dense_torques()(P, par)).reshape(-1, 3)
     assert dense.shape[0] == len(times)
     rows = [int(np.argmin(np.abs(times - t))) for t in problem.via_times_s]
@@ -256,6 +257,8 @@ def test_the_dense_torques_hold_the_nlps_own_at_its_via_points(problem, grasp):
 class _OverLimitStandIn:
     """What the dense check reads of a problem: a torque limit and a dense peak that falls as the bound tightens."""
 
+    dense_times_s = np.array([0.0])  # one instant: its torque is the peak
+
     def __init__(self, problem, peaks):
         self.torque_limit = 10.0
         self.peaks = list(peaks)
@@ -265,7 +268,7 @@ class _OverLimitStandIn:
         return self.problem.parameters(grasp)
 
     def dense_torques(self):
-        return lambda P, par: np.array([self.peaks.pop(0)])
+        return lambda P, par: np.array([self.peaks.pop(0), 0.0, 0.0])
 
 
 def test_a_torque_peak_between_via_points_tightens_the_bound_and_resolves(problem, grasp, monkeypatch):
