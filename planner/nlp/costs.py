@@ -6,15 +6,20 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+# det(J Jᵀ) is taken at least this: at a singular pose it is zero or, by rounding, negative, and √ of it (or its
+# gradient, which the tracking IK's null space follows) would be NaN
+DET_FLOOR = 1e-16
+
 
 def manipulability_sym(J: ca.MX | ca.SX) -> ca.MX | ca.SX:
-    """Eq. 14: ``sqrt(det(J Jᵀ))`` of the generalized Jacobian ``(6, 7)`` (maximised)."""
-    return ca.sqrt(ca.det(ca.mtimes(J, J.T)))
+    """Eq. 14: ``sqrt(det(J Jᵀ))`` of the generalized Jacobian ``(6, 7)`` (maximised), det floored at
+    :data:`DET_FLOOR` (the gradient is then zero at a singular pose, not NaN)."""
+    return ca.sqrt(ca.fmax(ca.det(ca.mtimes(J, J.T)), DET_FLOOR))
 
 
 def manipulability(J: NDArray[np.float64]) -> float:
-    """Numeric Eq. 14."""
-    return float(np.sqrt(max(np.linalg.det(J @ J.T), 0.0)))
+    """Numeric Eq. 14, floored like :func:`manipulability_sym`."""
+    return float(np.sqrt(max(np.linalg.det(J @ J.T), DET_FLOOR)))
 
 
 def approach_energy(base_offset_m: NDArray[np.float64]) -> float:

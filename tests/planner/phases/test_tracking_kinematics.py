@@ -105,3 +105,26 @@ def test_compiled_equals_interpreted_and_evaluators_keep_their_own_results(robot
         np.testing.assert_array_equal(getattr(interpreted(q1, x), name), getattr(first, name), err_msg=name)
     qd = rng.normal(size=robot.n_joints)
     np.testing.assert_array_equal(interpreted.base_pose_rate(q1, qd, x), kinematics.base_pose_rate(q1, qd, x))
+
+
+def test_manipulability_and_its_gradient_stay_finite_at_singular_poses(robot, kinematics):
+    """At a singular pose det(J* J*ᵀ) is zero or, by rounding, negative: √ of it and its gradient were NaN, the
+    tracking IK's null space then NaN and the whole simulation with it (a query crashed with 'SVD did not
+    converge'). Now the det is floored: the value is √DET_FLOOR and the gradient zero there, finite everywhere."""
+    from planner.nlp.costs import DET_FLOOR
+
+    ff = FreeFloatingModel(robot)
+    x = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    # the pose a query's tracking reached (scenario II flat spin at 1.17 °/s): smallest singular value 6e-10
+    reached = np.array([1.8980214189672147, -0.4146445056944511, 1.4467497414630615e-05, -0.041206072068663155,
+                        0.030727501224786333, 0.7277885461044441, -2.1397757668851538])
+    singular = [reached, np.zeros(robot.n_joints), _configurations(robot)[3]]
+    for q in singular:
+        J = np.asarray(ff.gen_jacobian(q)[0])
+        det = np.linalg.det(J @ J.T)
+        grad = kinematics(q, x).grad_manipulability
+        assert np.isfinite(grad).all(), q
+        if det <= DET_FLOOR:
+            assert manipulability(J) == np.sqrt(DET_FLOOR) and not grad.any(), q
+    J = np.asarray(ff.gen_jacobian(reached)[0])
+    assert np.linalg.det(J @ J.T) < 0.0  # the rounding case itself is tested, not only an exact zero
