@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import sys
-
 import click
 
-from lut.cli.exit_codes import ExitCode
 from lut.cli.options import COST_NAMES, check_budget, check_plan_outputs, cost_weights, target_state_from_options
-from lut.cli.plan_output import export_and_verdict, plan_table
+from lut.cli.plan_output import export_and_verdict, plan_table, refuse_without_plan
 from lut.cli.user_errors import user_errors
 
 
@@ -88,10 +85,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
                          f"({time.monotonic() - started_s:.1f} s)")
         result = planner.plan(state, deadline=deadline)
     except (OutOfReach, NoPlan) as exc:  # no trajectory to verify or export
-        click.echo(f"INFEASIBLE ({time.monotonic() - started_s:.1f} s): {exc}", err=True)
-        if out_path or csv_path:
-            click.echo("no plan written: there is no trajectory to export", err=True)
-        sys.exit(ExitCode.INFEASIBLE)
+        refuse_without_plan(exc, time.monotonic() - started_s, out_path, csv_path)
     report = verify(result, step_s=verify_step_s)
     for line in plan_table(result, report):
         click.echo(line)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
@@ -80,3 +80,11 @@ def export_and_verdict(result: GraspPlan, report: VerifyReport, out_path: str | 
         click.echo("INFEASIBLE: " + "; ".join(report.violations), err=True)
         sys.exit(ExitCode.INFEASIBLE)
     click.echo("FEASIBLE")
+
+
+def refuse_without_plan(reason: Exception, elapsed_s: float, out_path: str | None, csv_path: str | None) -> NoReturn:
+    """No trajectory was made (out of reach, or no time to solve): say why in one line and exit 2, writing nothing."""
+    click.echo(f"INFEASIBLE ({elapsed_s:.1f} s): {reason}", err=True)
+    if out_path or csv_path:
+        click.echo("no plan written: there is no trajectory to export", err=True)
+    sys.exit(ExitCode.INFEASIBLE)

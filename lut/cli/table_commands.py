@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from lut.cli.options import check_budget, check_plan_outputs, parse_floats
-from lut.cli.plan_output import cost_table, export_and_verdict, plan_table, query_block
+from lut.cli.plan_output import cost_table, export_and_verdict, plan_table, query_block, refuse_without_plan
 from lut.cli.user_errors import user_errors
 from planner.errors import LutgenError
 
@@ -172,6 +172,7 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
 
     from lut.query.table_query import TableQuery
     from planner.model.target import TargetState
+    from planner.plan import OutOfReach
     from planner.verify.verifier import summary_lines
 
     started_s = time.monotonic()  # the budget counts from here: loading the table is part of the query
@@ -184,10 +185,13 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     tq = TableQuery(table_path, scenario_path)
     check_plan_outputs([table_path, tq.scenario_path, *tq.scenario.input_files],
                        out_path, csv_path)
-    if robust is not None:
-        _robust_query(tq, state, robust, budget_s, out_path, csv_path)
-        return
-    result = tq.query(state, budget_s=budget_s, refine=refine, since_s=started_s)
+    try:
+        if robust is not None:
+            _robust_query(tq, state, robust, budget_s, out_path, csv_path)
+            return
+        result = tq.query(state, budget_s=budget_s, refine=refine, since_s=started_s)
+    except OutOfReach as exc:  # no table plan near it and no solve can reach it: nothing to verify or export
+        refuse_without_plan(exc, time.monotonic() - started_s, out_path, csv_path)
     for note in result.notes:
         click.echo(f"note: {note}; planned and verified at the observed state")
     for line in plan_table(result.plan, result.report):

@@ -46,7 +46,9 @@ from planner.config.scenario import Scenario, load_scenario
 from planner.deadline import Deadline
 from planner.errors import LutgenError
 from planner.model.target import TargetState
-from planner.plan import GraspPlan, Planner
+from planner.phases.approach_guess import reach_scan
+from planner.plan import GraspPlan, OutOfReach, Planner
+from planner.plan_grasps import GRASP_GUESSES
 from planner.plan_parameters import PlanParameters
 from planner.verify.verifier import VerifyReport, verify
 
@@ -155,6 +157,12 @@ class TableQuery:
         if found is not None:
             attempts.insert(0, (found.parameters, QuerySource.REFINED))
         refine_failure = ""
+        if report is None or not report.feasible:
+            unreachable = self.out_of_reach(state, t_start)
+            if unreachable is not None and plan is None:
+                raise unreachable
+            if unreachable is not None:  # no solve can reach the grasp: answer with the table's plan, infeasible
+                attempts, refine_failure = [], str(unreachable)
         for i, (warm, label) in enumerate(attempts):
             remaining = deadline.remaining_s() - FINISH_RESERVE_S
             if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
@@ -177,6 +185,12 @@ class TableQuery:
         latency["total_s"] = time.perf_counter() - t_start
         return QueryResult(plan, report, source, corners, latency, refine_failure,
                            found.notes if found is not None else (), costs)
+
+    def out_of_reach(self, state: TargetState, t_start: float) -> OutOfReach | None:
+        """Why no solve can plan ``state`` when no meeting time of the window brings the grasp within the arm's reach
+        (the cold plan's scan, seconds), else None; ``t_start`` (``time.perf_counter()``) dates the answer."""
+        scan = reach_scan(self.scenario, self.planner.approach.spline, state, GRASP_GUESSES)
+        return None if scan.reachable else OutOfReach(scan, time.perf_counter() - t_start)
 
     def cost_breakdowns(self, plan: GraspPlan, report: VerifyReport,
                         corners: list[int]) -> tuple[CostBreakdown, ...]:

@@ -1,0 +1,58 @@
+"""A query of a state no meeting time brings within the arm's reach answers at once (exit 2), never solves.
+
+The state: a scenario II flat spin of the coverage section (seed 7) whose cold plan is refused as out of reach in
+2 s; on the golden table (scenario II, spin axis fixed at orbital z) it lies off the grid, so the table's carried
+plans fail verify. Before, the query then spent half its budget on a warm refine and the rest on a cold solve that
+said out of reach (51 s).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from lut.query.table_query import TableQuery
+from planner.model.target import TargetState
+from planner.plan import OutOfReach
+from tests.support.cli import lutgen_in_process
+
+GOLDEN = Path(__file__).resolve().parents[2] / "data" / "ci_golden.h5"
+ATTITUDE = "0.0983087415872,0.856991118432,0.473549649159,0.177911056536"
+OMEGA_DEG_S = "0,0,1.00087763661"
+STATE = TargetState([0.0983087415872, 0.856991118432, 0.473549649159, 0.177911056536],
+                    [0.0, 0.0, 1.00087763661 * 3.141592653589793 / 180.0])
+
+
+@pytest.fixture(scope="module")
+def tq() -> TableQuery:
+    return TableQuery(GOLDEN)
+
+
+def _no_refine(*args, **kwargs):
+    raise AssertionError("a state out of reach must not be solved")
+
+
+def test_out_of_reach_with_a_table_plan_answers_it_infeasible_without_a_solve(tq, monkeypatch):
+    monkeypatch.setattr(tq, "refine", _no_refine)
+    result = tq.query(STATE, budget_s=100.0)
+    assert not result.report.feasible
+    assert result.refine_failure.startswith("out of reach: no meeting time")
+
+
+def test_out_of_reach_without_a_table_plan_raises_it(tq, monkeypatch):
+    monkeypatch.setattr(tq, "interpolate", lambda state: None)  # a table with no feasible point near it
+    monkeypatch.setattr(tq, "refine", _no_refine)
+    with pytest.raises(OutOfReach, match="out of reach"):
+        tq.query(STATE, budget_s=100.0)
+
+
+def test_the_cli_says_out_of_reach_in_one_line_and_exits_2_without_writing_a_plan(tmp_path, monkeypatch):
+    monkeypatch.setattr(TableQuery, "interpolate", lambda self, state: None)
+    out = tmp_path / "plan.json"
+    proc = lutgen_in_process("query", GOLDEN, "--attitude", ATTITUDE, "--omega-deg-s", OMEGA_DEG_S, "--out", out)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr and not out.exists()
+    lines = proc.stderr.splitlines()
+    assert lines[0].startswith("INFEASIBLE (") and "out of reach: " in lines[0]
+    assert lines[1] == "no plan written: there is no trajectory to export"
