@@ -323,6 +323,16 @@ def test_failure_reasons_without_a_plan_file(run, expected):
     assert all(r["detail"] for r in reasons)
 
 
+def test_a_querys_latency_line_is_read_stage_by_stage():
+    from bench_sections.coverage_runs import query_latency_s
+
+    line = ("source interpolated (corners [3]); table load 1.03 s; lookup_interpolate 0.9 ms, simulate 547.1 ms, "
+            "verify 267.2 ms, repair 0.0 ms, corners 3555.6 ms, refine 85173.1 ms, total 91335.9 ms")
+    assert query_latency_s(line) == pytest.approx({"table_load": 1.03, "lookup_interpolate": 0.0009, "simulate": 0.5471,
+                                                   "verify": 0.2672, "repair": 0.0, "corners": 3.5556,
+                                                   "refine": 85.1731, "total": 91.3359})
+
+
 def test_summary_tallies_reasons_and_bars_judge_them():
     def record(ok: bool, wall: float, *reasons: str) -> dict[str, Any]:
         return {"feasible_on_time": ok, "wall_s": wall, "exit_code": 0 if ok else 2,

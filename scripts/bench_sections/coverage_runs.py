@@ -129,6 +129,14 @@ def last_line(text: str) -> str:
     return lines[-1].strip() if lines else ""
 
 
+def query_latency_s(source_line: str) -> dict[str, float]:
+    """A query's ``source …`` line as ``{stage: seconds}``: the table load and each ``name V ms`` stage."""
+    load = re.search(r"table load ([\d.]+) s", source_line)
+    out = {} if load is None else {"table_load": float(load.group(1))}
+    out.update({m.group(1): float(m.group(2)) / 1e3 for m in re.finditer(r"(\w+) ([\d.]+) ms", source_line)})
+    return out
+
+
 def run_record(args: list[str], run: CliRun, budget_s: float) -> dict[str, Any]:
     """Everything needed to judge and reproduce one run; the plan's verification and solver record in brief."""
     reasons = failure_reasons(run, budget_s)
@@ -136,10 +144,12 @@ def run_record(args: list[str], run: CliRun, budget_s: float) -> dict[str, Any]:
     printed = [line[len("note: "):] for line in run.stdout.splitlines() if line.startswith("note: ")]
     notes = list(dict.fromkeys([*printed, *m.get("notes", [])]))  # a query prints its own notes, a plan its plan's
     source = [line.split()[1] for line in run.stdout.splitlines() if line.startswith("source ")]
+    latency = [query_latency_s(line) for line in run.stdout.splitlines() if line.startswith("source ")]
     refine = [line.split(": ", 1)[1] for line in run.stderr.splitlines() if line.startswith("refine did not finish: ")]
     return {"command": reproduction(args), "exit_code": run.exit_code, "wall_s": run.wall_s,
             "feasible_on_time": not reasons, "reasons": reasons, "notes": notes,
             "source": source[0] if source else None, "violations": m.get("violations"),
             "solver": m.get("solver"), "start_delay_s": m.get("start_delay_s"),
             "free_axis_angle_deg": m.get("free_axis_angle_deg"), "refine_failure": refine[0] if refine else None,
+            "latency_s": latency[0] if latency else None,
             "last_line": last_line(run.stderr)}
