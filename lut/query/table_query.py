@@ -59,6 +59,9 @@ MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: n
 # a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
 # plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
 WARM_SHARE = 0.5
+# and at most this [s]: a warm refine that fails holds the cold solve back for its whole share, while those that
+# succeed need far less (README "Envelope tables")
+WARM_REFINE_CAP_S = 30.0
 # corners whose own plans are tried (the cheapest, then the heaviest first) when the interpolated plan fails
 # verification, before any solve: each costs one re-simulation and verification and perhaps a repair (1-4 s), a refine
 # tens of seconds; a flat-spin cell has 8 corners (README "Optimal tables")
@@ -139,8 +142,8 @@ class TableQuery:
 
         The refine runs in a child process whose plan ends at the budget less :data:`FINISH_RESERVE_S` (to
         re-simulate and verify its answer here) and which is killed there, so a query never overruns, whatever
-        the solver does. A warm refine that is not asked for gets :data:`WARM_SHARE` of the time left, so that
-        the cold solve after it (if it gives no feasible plan) still has the rest.
+        the solver does. A warm refine that is not asked for gets :data:`WARM_SHARE` of the time left, at most
+        :data:`WARM_REFINE_CAP_S`, so that the cold solve after it (if it gives no feasible plan) has the rest.
         """
         t_start = time.perf_counter()
         deadline = Deadline.after(budget_s, since_s)
@@ -167,9 +170,10 @@ class TableQuery:
             remaining = deadline.remaining_s() - FINISH_RESERVE_S
             if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
                 break
-            share = WARM_SHARE if i + 1 < len(attempts) and not refine else 1.0  # the cold solve keeps the rest
+            before_cold = i + 1 < len(attempts) and not refine  # the cold solve keeps the rest
+            share_s = min(WARM_SHARE * remaining, WARM_REFINE_CAP_S) if before_cold else remaining
             t0 = time.perf_counter()
-            refined = self.refine(state, warm, max(MIN_REFINE_S, share * remaining))
+            refined = self.refine(state, warm, max(MIN_REFINE_S, share_s))
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
                 new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})

@@ -101,6 +101,26 @@ def test_corners_at_the_cells_lowest_cost_are_tried_first_and_alone_averaged(ope
     assert res.corners_used == [2] and res.source is QuerySource.CORNER
 
 
+def test_a_warm_refine_gets_half_of_what_is_left_at_most_its_cap_and_the_cold_solve_the_rest(opened, monkeypatch):
+    budgets: list[tuple[str, float]] = []
+    _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible=set())
+
+    def refine(state, warm, budget_s):
+        budgets.append(("warm" if warm is not None else "cold", budget_s))
+        return PointResult(-1, PointStatus.FAILED, "stand-in: no solve")
+
+    monkeypatch.setattr(opened, "refine", refine)
+    opened.query(STATE, budget_s=100.0)  # ~90 s left after the table: half of it would be ~45 s
+    (warm, warm_s), (cold, cold_s) = budgets
+    assert (warm, cold) == ("warm", "cold") and warm_s == tq_module.WARM_REFINE_CAP_S
+    # the stand-in's warm refine takes no time: the cold solve gets all that is left, not the other half
+    assert 100.0 - tq_module.FINISH_RESERVE_S - 10.0 < cold_s <= 100.0 - tq_module.FINISH_RESERVE_S
+    budgets.clear()
+    opened.query(STATE, budget_s=40.0)  # half of what is left is under the cap
+    assert budgets[0][1] < tq_module.WARM_REFINE_CAP_S
+    assert budgets[0][1] == pytest.approx(tq_module.WARM_SHARE * budgets[1][1], abs=2.0)
+
+
 def test_an_asked_for_refine_skips_the_corners(opened, monkeypatch):
     tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible={0, 1})
     opened.query(STATE, budget_s=100.0, refine=True)
