@@ -12,9 +12,11 @@ DET_FLOOR = 1e-16
 
 
 def manipulability_sym(J: ca.MX | ca.SX) -> ca.MX | ca.SX:
-    """Eq. 14: ``sqrt(det(J Jᵀ))`` of the generalized Jacobian ``(6, 7)`` (maximised), det floored at
-    :data:`DET_FLOOR` (the gradient is then zero at a singular pose, not NaN)."""
-    return ca.sqrt(ca.fmax(ca.det(ca.mtimes(J, J.T)), DET_FLOOR))
+    """Eq. 14: ``sqrt(det(J Jᵀ))`` of the generalized Jacobian ``(6, 7)`` (maximised); below :data:`DET_FLOOR`
+    ``sqrt(DET_FLOOR)`` with a zero gradient, not NaN (a branch, so that above it the numbers are √det's bit for
+    bit: a stored plan's re-simulation reproduces its samples)."""
+    det = ca.det(ca.mtimes(J, J.T))
+    return ca.if_else(det > DET_FLOOR, ca.sqrt(det), np.sqrt(DET_FLOOR))
 
 
 def manipulability(J: NDArray[np.float64]) -> float:
