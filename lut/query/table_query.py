@@ -160,8 +160,8 @@ class TableQuery:
         if found is not None:
             attempts.insert(0, (found.parameters, QuerySource.REFINED))
         refine_failure = ""
-        if report is None or not report.feasible:
-            unreachable = self.out_of_reach(state, t_start)
+        if (report is None or not report.feasible) and deadline.remaining_s() - FINISH_RESERVE_S >= MIN_REFINE_S:
+            unreachable = self.out_of_reach(state, t_start)  # only where it can spare a solve
             if unreachable is not None and plan is None:
                 raise unreachable
             if unreachable is not None:  # no solve can reach the grasp: answer with the table's plan, infeasible
