@@ -270,14 +270,15 @@ class GraspSearch:
             self.approach_s += candidate.app.solve_time_s
             self._tried_offsets.append(candidate.app.base_offset_m)
             yield candidate
-        yield from self._grasps_from_other_bases(COLD_START_ITERATIONS)
+        yield from self._grasps_from_other_bases()
 
-    def _grasps_from_other_bases(self, max_iterations: int) -> Iterator[GraspCandidate]:
+    def _grasps_from_other_bases(self) -> Iterator[GraspCandidate]:
         """The grasps the approach reaches with θ_b(0) within :data:`BASE_OFFSET_BOX_M` of the next base offsets, each
-        approach within ``max_iterations``."""
+        approach within :data:`COLD_START_ITERATIONS`."""
         while not self.deadline.passed and (offset := self._next_base_offset(consume=True)) is not None:
             app = solve_approach_from_base(self.planner.approach, self.state, offset, BASE_OFFSET_STARTS,
-                                           self.tracking_speed_scale, self.deadline, max_iterations, BASE_OFFSET_BOX_M)
+                                           self.tracking_speed_scale, self.deadline, COLD_START_ITERATIONS,
+                                           BASE_OFFSET_BOX_M)
             self._tried_offsets.append(offset)
             where = f"θ_b(0) = ({offset[0]:+.2f}, {offset[1]:+.2f}) ± {BASE_OFFSET_BOX_M:g} m"
             if not app.success:

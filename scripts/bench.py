@@ -48,7 +48,15 @@ from typing import Any
 
 from bench_sections.baseline import baseline
 from bench_sections.builds import builds
-from bench_sections.common import ROOT, Settings, coverage_settings, json_safe, optimal_settings, settings_for
+from bench_sections.common import (
+    ROOT,
+    CoverageSettings,
+    Settings,
+    coverage_settings,
+    json_safe,
+    optimal_settings,
+    settings_for,
+)
 from bench_sections.coverage import KINDS, coverage
 from bench_sections.machine import load_average, machine
 from bench_sections.optimal import optimal
@@ -164,10 +172,15 @@ def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> d
     return result
 
 
+def coverage_settings_of(args: argparse.Namespace) -> CoverageSettings:
+    """The coverage section's settings from the command line's options."""
+    return coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables,
+                             args.coverage_kinds, not args.coverage_queries_only)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    cov = coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables,
-                            args.coverage_kinds, not args.coverage_queries_only)
+    cov = coverage_settings_of(args)
     settings = replace(settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s,
                                     args.plan_with_costs, args.refine_budget_s, cov),
                        optimal=optimal_settings(args.quick, args.trim, args.optimal_table, args.optimal_states))

@@ -357,7 +357,7 @@ def test_summary_tallies_reasons_and_bars_judge_them():
 
 def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):
     import bench
-    from bench_sections.common import coverage_settings, settings_for
+    from bench_sections.common import settings_for
 
     commands: list[list[str]] = []
 
@@ -368,9 +368,7 @@ def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):
     monkeypatch.setattr(coverage, "run_all", fake_run_all)
     args = bench.parse_args(["--coverage-queries-only", "--coverage-kinds", "scenario_II_flat_spin",
                              "--coverage-states", "2", "--coverage-tables", str(ROOT / "tests" / "data")])
-    cov = coverage_settings(False, False, args.coverage_states, 1, args.coverage_tables, args.coverage_kinds,
-                            not args.coverage_queries_only)
-    c = coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0, cov))
+    c = coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0, bench.coverage_settings_of(args)))
     assert [cmd[0] for cmd in commands] == ["query", "query"]  # the golden table answers scenario II's flat spins
     assert c["queries"]["scenario_II_flat_spin"]["feasible_on_time"] == 2
     assert c["plans"]["scenario_II_flat_spin"]["skipped"] == "--coverage-queries-only"

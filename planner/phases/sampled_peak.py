@@ -46,8 +46,7 @@ def _cubic_peak(t: Array, curve: Array, i: int) -> float:
     lo, hi = t[max(i - 1, 0)], t[min(i + 1, len(t) - 1)]
     fine = np.linspace(lo, hi, 2 * FINE_STEPS + 1) - t[i]
     best = curve[i]
-    for first in (i - 2, i - 1):
-        first = min(max(first, 0), len(t) - 4)
+    for first in {min(max(f, 0), len(t) - 4) for f in (i - 2, i - 1)}:  # near an end both clip to one window
         window = slice(first, first + 4)
         coeffs = np.polyfit(t[window] - t[i], curve[window], 3)
         best = max(best, float(np.polyval(coeffs, fine).max()))

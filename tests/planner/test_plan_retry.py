@@ -108,7 +108,7 @@ def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(pla
     assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
     guesses = [c[0] for c in calls[:-1]]
     assert guesses[0] == 0 and guesses == sorted(set(guesses)) and guesses[-1] <= GRASP_GUESSES - 1
-    # then every other base offset of the box, nearest the first grasp's first, each said in the notes
+    # then every other base offset of the box, farthest from the first grasp's first, each said in the notes
     expected = other_base_offsets(sc, plan.approach.base_offset_m)
     order = [next(k for k, e in enumerate(expected) if np.array_equal(e, b)) for b in bases]
     assert len(bases) >= 4 and order == sorted(order)  # in order; those near a scanned grasp's θ_b(0) left out
@@ -206,7 +206,7 @@ def test_a_plan_begun_past_its_deadline_is_still_a_plan_to_verify(planner_II, mo
     assert np.all(np.abs(plan.qd[-1]) < 1e-9)  # the smooth stop ends at rest
 
 
-def test_other_base_offsets_cover_the_box_nearest_first():
+def test_other_base_offsets_cover_the_box_farthest_first():
     sc = load_scenario(SCENARIO_II)
     (x_lo, x_hi), (z_lo, z_hi) = sc.base_offset_bounds_m
     first = np.array([0.5 * (x_lo + x_hi) + 0.05, 0.5 * (z_lo + z_hi) - 0.02])  # beside the box's centre
