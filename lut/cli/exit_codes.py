@@ -12,3 +12,4 @@ class ExitCode(IntEnum):
     BAD_INPUT = 1  # a config, file, table, option value or target state was refused (one line ``error: …``)
     INFEASIBLE = 2  # plan/query: a plan was made but verification failed (do not run it)
     USAGE = 64  # the command line itself is malformed (unknown option, missing argument); BSD EX_USAGE
+    INTERNAL = 70  # an unexpected exception: a defect of lutgen or the machine, never the input; BSD EX_SOFTWARE

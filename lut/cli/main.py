@@ -3,7 +3,8 @@
 Errors a user can cause (bad config, option value, file, target state) are printed as one line
 ``error: …`` on stderr with exit code 1, never a traceback (:mod:`lut.cli.user_errors`); a malformed
 command line (click's usage errors) exits 64; plan and query exit 2 for an infeasible plan
-(:class:`lut.cli.exit_codes.ExitCode`). Warnings (e.g. compiled Functions falling back to interpreted
+(:class:`lut.cli.exit_codes.ExitCode`); any other exception is lutgen's own failure: its traceback, a last line
+``internal error: …`` and exit code 70, never 1. Warnings (e.g. compiled Functions falling back to interpreted
 ones, :mod:`planner.nlp.compiled`) are one line ``warning: …`` too. The commands live in
 :mod:`lut.cli.plan_commands`, :mod:`lut.cli.table_commands` and :mod:`lut.cli.view`; each imports the
 planner only when it runs, so ``lutgen --help`` is fast.
@@ -65,7 +66,8 @@ def main() -> None:
 
     \b
     Exit codes: 0 done (plan/query: feasible), 1 bad input (one line "error: …"),
-    2 infeasible (plan/query) or no-go (robustness --min-success), 64 malformed command line.
+    2 infeasible (plan/query) or no-go (robustness --min-success), 64 malformed command line,
+    70 internal error (a defect or the machine; the traceback and a last line "internal error: …").
     """
     warnings.formatwarning = _one_line_warning
 

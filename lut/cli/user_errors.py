@@ -1,9 +1,11 @@
-"""One-line user errors: a :class:`LutgenError` becomes ``error: …`` on stderr and exit code 1, never a traceback."""
+"""One-line user errors: a :class:`LutgenError` becomes ``error: …`` on stderr and exit code 1, never a traceback;
+any other exception is lutgen's own failure, exit code 70, never 1."""
 
 from __future__ import annotations
 
 import functools
 import sys
+import traceback
 from collections.abc import Callable
 from typing import Any
 
@@ -22,7 +24,9 @@ def one_line(text: str) -> str:
 
 
 def user_errors(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Turn :class:`LutgenError` into a one-line message and exit code :attr:`ExitCode.BAD_INPUT`."""
+    """Turn :class:`LutgenError` into a one-line message and exit code :attr:`ExitCode.BAD_INPUT`, and any other
+    exception into its traceback, a last line ``internal error: …`` and :attr:`ExitCode.INTERNAL`: a script must
+    never read a defect as bad input (a valid state refused)."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -31,8 +35,20 @@ def user_errors(func: Callable[..., Any]) -> Callable[..., Any]:
         except LutgenError as exc:
             click.echo(f"error: {one_line(str(exc))}", err=True)
             sys.exit(ExitCode.BAD_INPUT)
+        except click.ClickException:
+            raise
+        except Exception as exc:  # noqa: BLE001 - the last line of defence: every other failure is ours
+            report_internal_error(exc)
+            sys.exit(ExitCode.INTERNAL)
 
     return wrapper
+
+
+def report_internal_error(exc: Exception) -> None:
+    """The traceback of ``exc`` on stderr (for whoever mends it), then one line that says what it means."""
+    click.echo("".join(traceback.format_exception(exc)).rstrip(), err=True)
+    click.echo(f"internal error: {one_line(f'{type(exc).__name__}: {exc}')} (a failure of lutgen or of this machine, "
+               "not of the input; no plan is given: report it with the traceback above)", err=True)
 
 
 def write_error(target: str, exc: OSError) -> LutgenError:

@@ -92,6 +92,9 @@ def failed_checks(metrics: dict[str, Any]) -> list[dict[str, Any]]:
     return out
 
 
+EXIT_MEANINGS = {1: "bad input", 2: "infeasible", 64: "usage", 70: "internal error"}  # lut.cli.exit_codes
+
+
 def failure_reasons(run: CliRun, budget_s: float) -> list[dict[str, Any]]:
     """Why a run did not give a verified plan on time (empty: it did): failing checks, or the one-line reason
     of a plan refused before solving, or ``over budget``, or a bad input / crash (a bug here)."""
@@ -110,7 +113,7 @@ def failure_reasons(run: CliRun, budget_s: float) -> list[dict[str, Any]]:
         match = INFEASIBLE_LINE.match(line.strip())
         if run.exit_code == 2 and match:  # refused before solving (out of reach), no plan written
             return [{"reason": match["reason"].strip(), "detail": line.strip()}, *late]
-    what = {1: "bad input", 2: "infeasible", 64: "usage"}.get(run.exit_code, f"exit {run.exit_code}")
+    what = EXIT_MEANINGS.get(run.exit_code, f"exit {run.exit_code}")
     return [{"reason": what, "detail": last_line(run.stderr) or "(nothing on stderr)"}, *late]
 
 
