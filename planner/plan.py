@@ -63,6 +63,11 @@ class OutOfReach(Exception):
         super().__init__(scan.reason())
 
 
+class NoPlan(Exception):
+    """No plan was made for a valid state (``str()`` says why: no time left to solve, or the solve itself gave
+    none): the state is answered infeasible, and there is no trajectory to verify or export."""
+
+
 @dataclass
 class GraspPlan:
     """One planned grasp: decision parameters, dense trajectory, metrics, solver statistics (SI)."""

@@ -66,7 +66,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     from planner.config.scenario import load_scenario
     from planner.deadline import VERIFY_RESERVE_S, Deadline
     from planner.errors import LutgenError
-    from planner.plan import OutOfReach, Planner
+    from planner.plan import NoPlan, OutOfReach, Planner
     from planner.verify.verifier import summary_lines, verify
 
     deadline = Deadline.after(check_budget(budget_s), started_s).earlier(VERIFY_RESERVE_S)
@@ -94,10 +94,6 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     for line in summary_lines(report):
         click.echo(line)
     export_and_verdict(result, report, out_path, csv_path)
-
-
-class NoPlan(Exception):
-    """No plan was made (``str()`` says why): nothing to verify or export."""
 
 
 COMMANDS = (validate, plan)

@@ -172,7 +172,7 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
 
     from lut.query.table_query import TableQuery
     from planner.model.target import TargetState
-    from planner.plan import OutOfReach
+    from planner.plan import NoPlan, OutOfReach
     from planner.verify.verifier import summary_lines
 
     started_s = time.monotonic()  # the budget counts from here: loading the table is part of the query
@@ -190,7 +190,7 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
             _robust_query(tq, state, robust, budget_s, out_path, csv_path)
             return
         result = tq.query(state, budget_s=budget_s, refine=refine, since_s=started_s)
-    except OutOfReach as exc:  # no table plan near it and no solve can reach it: nothing to verify or export
+    except (OutOfReach, NoPlan) as exc:  # no table plan near it and no solve gave one: nothing to verify or export
         refuse_without_plan(exc, time.monotonic() - started_s, out_path, csv_path)
     for note in result.notes:
         click.echo(f"note: {note}; planned and verified at the observed state")

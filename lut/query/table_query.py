@@ -44,10 +44,9 @@ from lut.table.schema import TableError
 from lut.table.store import Table
 from planner.config.scenario import Scenario, load_scenario
 from planner.deadline import Deadline
-from planner.errors import LutgenError
 from planner.model.target import TargetState
 from planner.phases.approach_guess import reach_scan
-from planner.plan import GraspPlan, OutOfReach, Planner
+from planner.plan import GraspPlan, NoPlan, OutOfReach, Planner
 from planner.plan_grasps import GRASP_GUESSES
 from planner.plan_parameters import PlanParameters
 from planner.verify.verifier import VerifyReport, verify
@@ -184,7 +183,7 @@ class TableQuery:
             refine = False  # an asked-for refine is the warm one; the cold solve only stands in for a missing plan
         if plan is None or report is None:
             why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
-            raise LutgenError(f"the table has no feasible point near this state and the solve gave no plan: {why}")
+            raise NoPlan(f"no plan: the table has no feasible point near this state and the solve gave none: {why}")
         costs = self.cost_breakdowns(plan, report, corners)
         latency["total_s"] = time.perf_counter() - t_start
         return QueryResult(plan, report, source, corners, latency, refine_failure,

@@ -1,4 +1,6 @@
-"""A query of a state no meeting time brings within the arm's reach answers at once (exit 2), never solves.
+"""A query of a state no meeting time brings within the arm's reach answers at once (exit 2), never solves; a
+reachable state whose solve gives no plan (crashed, killed at its time limit) is answered infeasible too (exit 2,
+never the exit 1 of bad input).
 
 The state: a scenario II flat spin of the coverage section (seed 7) whose cold plan is refused as out of reach in
 2 s; on the golden table (scenario II, spin axis fixed at orbital z) it lies off the grid, so the table's carried
@@ -13,8 +15,9 @@ from pathlib import Path
 import pytest
 
 from lut.query.table_query import TableQuery
+from lut.table.point_result import PointResult, PointStatus
 from planner.model.target import TargetState
-from planner.plan import OutOfReach
+from planner.plan import NoPlan, OutOfReach
 from tests.support.cli import lutgen_in_process
 
 GOLDEN = Path(__file__).resolve().parents[2] / "data" / "ci_golden.h5"
@@ -55,4 +58,31 @@ def test_the_cli_says_out_of_reach_in_one_line_and_exits_2_without_writing_a_pla
     assert "Traceback" not in proc.stderr and not out.exists()
     lines = proc.stderr.splitlines()
     assert lines[0].startswith("INFEASIBLE (") and "out of reach: " in lines[0]
+    assert lines[1] == "no plan written: there is no trajectory to export"
+
+
+def _killed(self, state, warm, budget_s):
+    return PointResult(-1, PointStatus.FAILED, f"killed at its time limit of {budget_s:.0f} s")
+
+
+def _no_table_plan_and_a_killed_solve(monkeypatch):
+    monkeypatch.setattr(TableQuery, "interpolate", lambda self, state: None)
+    monkeypatch.setattr(TableQuery, "out_of_reach", lambda self, state, t_start: None)
+    monkeypatch.setattr(TableQuery, "refine", _killed)
+
+
+def test_a_solve_that_gives_no_plan_raises_no_plan(tq, monkeypatch):
+    _no_table_plan_and_a_killed_solve(monkeypatch)
+    with pytest.raises(NoPlan, match="no plan: .*killed at its time limit"):
+        tq.query(STATE, budget_s=100.0)
+
+
+def test_the_cli_answers_a_state_without_a_plan_infeasible_never_as_bad_input(tmp_path, monkeypatch):
+    _no_table_plan_and_a_killed_solve(monkeypatch)
+    out = tmp_path / "plan.json"
+    proc = lutgen_in_process("query", GOLDEN, "--attitude", ATTITUDE, "--omega-deg-s", OMEGA_DEG_S, "--out", out)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr and "error:" not in proc.stderr and not out.exists()
+    lines = proc.stderr.splitlines()
+    assert lines[0].startswith("INFEASIBLE (") and "no plan: " in lines[0] and "killed at its time limit" in lines[0]
     assert lines[1] == "no plan written: there is no trajectory to export"
