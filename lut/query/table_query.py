@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
+from lut.query.least_violating import violates_less
 from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.stabilization_repair import REPAIR_ITERATIONS, stabilization_only
@@ -65,6 +66,8 @@ WARM_REFINE_CAP_S = 30.0
 # verification, before any solve: each costs one re-simulation and verification and perhaps a repair (1-4 s), a refine
 # tens of seconds; a flat-spin cell has 8 corners (README "Optimal tables")
 CORNER_TRIES = 8
+# a plan the query made: the plan, its verification, the corners it came from and its source
+Attempt = tuple[GraspPlan, VerifyReport, list[int], QuerySource]
 CORNER_STAGE_S = 20.0  # no corner is started once the corners took this long [s]: the solves keep the rest
 
 
@@ -176,7 +179,7 @@ class TableQuery:
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
                 new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})
-                if report is None or (new_report.feasible and (refine or not report.feasible)):
+                if report is None or (new_report.feasible and refine) or violates_less(new_report, report):
                     plan, report, source = new_plan, new_report, label
             else:
                 refine_failure = refined.failure_reason
@@ -215,10 +218,11 @@ class TableQuery:
         return self._corner_costs[point]
 
     def table_plan(self, state: TargetState, found: TableAnswer, deadline: Deadline, latency: dict[str, float],
-                   refine: bool) -> tuple[GraspPlan, VerifyReport, list[int], QuerySource]:
+                   refine: bool) -> Attempt:
         """The table's own plan at ``state``: ``found`` re-simulated and verified; unless a refine was asked for and
         while it is not feasible, its stabilization repaired (:meth:`repaired`), then the corners' own plans
-        (:meth:`corner_plan`). Returns the plan, its report, the corners it came from and its source."""
+        (:meth:`corner_plan`). Returns the plan, its report, the corners it came from and its source: the first feasible
+        one, else the least violating."""
         plan, report = self.simulate_and_verify(state, found.parameters, latency)
         if report.feasible or refine:
             return plan, report, found.corners, found.source
@@ -227,20 +231,19 @@ class TableQuery:
         latency["repair_s"] = time.perf_counter() - t0
         if fixed is not None:
             return *fixed, found.corners, QuerySource.REPAIRED
+        best = plan, report, found.corners, found.source
         if found.source is QuerySource.INTERPOLATED:
             t0 = time.perf_counter()
-            own = self.corner_plan(state, deadline)
+            best = self.corner_plan(state, deadline, best)
             latency["corners_s"] = time.perf_counter() - t0
-            if own is not None:
-                return own
-        return plan, report, found.corners, found.source
+        return best
 
-    def corner_plan(self, state: TargetState,
-                    deadline: Deadline) -> tuple[GraspPlan, VerifyReport, list[int], QuerySource] | None:
+    def corner_plan(self, state: TargetState, deadline: Deadline, best: Attempt) -> Attempt:
         """The first of the cell's feasible corners (at most :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`;
         those at the cell's lowest cost first, each group heaviest first) whose own plan, carried to ``state``'s phase,
         verifies feasible there, as it is (source ``corner``) or with its stabilization repaired (``repaired``):
-        ``(plan, report, [corner], source)``; ``None`` if none does in time.
+        ``(plan, report, [corner], source)``; if none does in time, the least violating of ``best`` (the interpolated
+        plan's attempt) and the corners' plans tried (:mod:`lut.query.least_violating`).
 
         Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
         in different families of solutions may collide or miss the grasp.
@@ -250,14 +253,16 @@ class TableQuery:
         stage = Deadline.after(CORNER_STAGE_S)
         for candidate in sorted(candidates, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]:
             if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S or stage.passed:
-                return None
+                return best
             plan, report = self.simulate_and_verify(state, candidate.parameters, {})
             if report.feasible:
                 return plan, report, [candidate.corner], QuerySource.CORNER
             fixed = self.repaired(state, candidate.parameters, report, deadline)
             if fixed is not None:
                 return *fixed, [candidate.corner], QuerySource.REPAIRED
-        return None
+            if violates_less(report, best[1]):
+                best = plan, report, [candidate.corner], QuerySource.CORNER
+        return best
 
     def repaired(self, state: TargetState, parameters: PlanParameters, report: VerifyReport,
                  deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:
