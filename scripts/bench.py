@@ -12,8 +12,8 @@ Writes JSON (``--out``, default ``out/bench.json``) and prints a digest table. T
 ``{"median", "min", "max", "runs"}`` (plus ``"p95"`` for query latencies) in the unit the key names
 (``_us`` µs, ``_ms`` ms, ``_s`` s). A part a mode does not measure keeps its keys, with null values and
 ``"skipped": reason``. Sections (one module each in ``scripts/bench_sections/``): ``machine``,
-``primitives``, ``query``, ``build``, ``planner``, ``baseline``, ``coverage``, ``optimal``, ``reach``. Seeds are
-fixed (``--seed``).
+``primitives``, ``query``, ``build``, ``planner``, ``baseline``, ``coverage``, ``optimal``, ``reach``, ``carry``.
+Seeds are fixed (``--seed``).
 
 The full run refines every query state whose interpolated plan fails verification, each within
 ``--refine-budget-s`` (default 100 s): with a table that interpolates poorly that adds up to 50 × the budget.
@@ -32,6 +32,11 @@ at a time: about a minute per state on one core. Alone: ``scripts/bench.py --onl
 ``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many
 no meeting time brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a
 longer window.
+
+``carry`` (issue 20) plans the coverage section's seeded states cold in process (default kinds: the two general
+tumbles) and re-verifies each feasible plan at states displaced in attitude (2.5-45°) and body rate (0.25-2 °/s):
+how far a table's plan carries, so what grid spacing a table needs. Alone:
+``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only carry --coverage-states 10``.
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ from typing import Any
 
 from bench_sections.baseline import baseline
 from bench_sections.builds import builds
+from bench_sections.carry import carry
 from bench_sections.common import (
     ROOT,
     CoverageSettings,
@@ -69,8 +75,9 @@ from bench_sections.report import print_report
 # JSON key → section; the order they run in (the JSON lists them in the issue's order)
 SECTIONS: dict[str, Callable[[Settings], dict[str, Any]]] = {
     "primitives": primitives, "query": queries, "build": builds, "baseline": baseline, "planner": plans,
-    "coverage": coverage, "optimal": optimal, "reach": reach}
-JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline", "coverage", "optimal", "reach")
+    "coverage": coverage, "optimal": optimal, "reach": reach, "carry": carry}
+JSON_ORDER = ("machine", "primitives", "query", "build", "planner", "baseline", "coverage", "optimal", "reach",
+              "carry")
 
 
 def positive_int(text: str) -> int:

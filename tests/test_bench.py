@@ -22,7 +22,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))  # the benchmark's sections are scripts, not a package
 
-from bench_sections import coverage, coverage_tables  # noqa: E402
+from bench_sections import carry, coverage, coverage_tables  # noqa: E402
 from bench_sections.coverage_runs import CliRun, failure_reasons, run_record  # noqa: E402
 from bench_sections.envelope import flat_spin_state, major_axis_body, tumble_state, wxyz  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
@@ -96,13 +96,13 @@ def _walk_skips(node: Any, where: str = "") -> None:
 def test_every_section_is_there_and_every_skip_says_why(run):
     bench, stdout = run
     assert list(bench) == ["machine", "primitives", "query", "build", "planner", "baseline", "coverage", "optimal",
-                           "reach", "wall_s"]
+                           "reach", "carry", "wall_s"]
     _walk_skips(bench)
-    for section in ("primitives", "query", "build", "planner", "baseline", "coverage", "optimal", "reach"):
+    for section in ("primitives", "query", "build", "planner", "baseline", "coverage", "optimal", "reach", "carry"):
         assert _positive(bench[section]["section_wall_s"]), section
     # the readable table names every section
     for title in ("lutgen bench", "primitives", "query", "build", "planner", "baseline", "coverage", "optimal",
-                  "reach", "wrote"):
+                  "reach", "carry", "wrote"):
         assert title in stdout, title
 
 
@@ -406,3 +406,38 @@ def test_reach_counts_each_what_if_over_the_coverage_states(bench):
             e = r[kind][name]
             assert e["states"] == r["states_per_kind"] and e["out_of_reach"] == len(e["indices"])
             assert all(0 <= i < e["states"] for i in e["indices"])
+
+
+def test_carry_measures_every_displacement_of_the_coverage_kinds(bench):
+    """Trim: the coverage section's one kind and state, planned within its 2 s budget (no feasible plan), so every
+    displacement is there with no plan carried."""
+    r = bench["carry"]
+    kinds = [k for k in r if k.startswith("scenario_")]
+    assert kinds == ["scenario_II_flat_spin"] and r["states_per_kind"] == 1
+    entry = r["scenario_II_flat_spin"]
+    assert entry["feasible_plans"] == 0 and entry["largest_attitude_deg"] is None
+    assert len(entry["steps"]) == len(r["attitude_steps_deg"]) + len(r["rate_steps_deg_s"])
+    assert all(d["plans"] == 0 and d["as_is"] is None for d in entry["steps"].values())
+
+
+def test_a_displaced_state_is_that_far_in_attitude_and_rate():
+    from planner.model.target_state import TargetState
+
+    state = TargetState(np.array([0.5, 0.5, -0.5, 0.5]), np.radians([1.0, -2.0, 3.0]))
+    axis = np.array([2.0, -1.0, 2.0]) / 3.0
+    moved = carry.displaced(state, 20.0, 0.5, axis)
+    w, x, y, z = state.attitude_wxyz
+    W, X, Y, Z = moved.attitude_wxyz
+    relative = Rotation.from_quat([x, y, z, w]).inv() * Rotation.from_quat([X, Y, Z, W])
+    np.testing.assert_allclose(relative.as_rotvec(), np.radians(20.0) * axis, atol=1e-12)  # body frame, on the right
+    np.testing.assert_allclose(moved.omega_body_rad_s - state.omega_body_rad_s, np.radians(0.5) * axis, atol=1e-15)
+
+
+def test_the_largest_carry_stops_at_the_first_displacement_below_the_bar():
+    steps = {"attitude_deg 2.5": {"repaired": 1.0}, "attitude_deg 5": {"repaired": 0.9},
+             "attitude_deg 10": {"repaired": 0.5}, "attitude_deg 20": {"repaired": 0.95},
+             "rate_deg_s 0.25": {"repaired": 0.8}, "rate_deg_s 0.5": {"repaired": 1.0}}
+    entry = {"steps": steps}
+    assert carry.largest_carry(entry, "attitude_deg") == 5.0  # 20° passing again does not count: 10° did not
+    assert carry.largest_carry(entry, "rate_deg_s") is None
+    assert carry.largest_carry({"steps": {"rate_deg_s 0.25": {"repaired": None}}}, "rate_deg_s") is None

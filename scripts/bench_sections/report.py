@@ -150,8 +150,22 @@ def _reach(r: dict[str, Any]) -> tuple[str, list[Row]]:
     return f"reach ({r['states_per_kind']} states per kind, the scan of meeting times only)", rows
 
 
+def _carry(r: dict[str, Any]) -> tuple[str, list[Row]]:
+    rows: list[Row] = []
+    for kind, entry in r.items():
+        if not (isinstance(entry, dict) and "steps" in entry):
+            continue
+        rows.append((f"{kind}", f"{entry['feasible_plans']}/{entry['states']} cold plans feasible; carried ≥ "
+                                f"{r['carry_bar']:g} up to {entry['largest_attitude_deg']} ° attitude, "
+                                f"{entry['largest_rate_deg_s']} °/s rate"))
+        for step, d in entry["steps"].items():
+            value = "n/a" if d["as_is"] is None else f"as is {d['as_is']:.2f}, repaired {d['repaired']:.2f}"
+            rows.append((f"  {step}", f"{value} of {d['plans']} plans"))
+    return f"carry ({r['states_per_kind']} states per kind: a plan re-verified at displaced states)", rows
+
+
 SECTIONS = {"primitives": _primitives, "query": _query, "build": _build, "planner": _planner,
-            "baseline": _baseline, "coverage": _coverage, "optimal": _optimal, "reach": _reach}
+            "baseline": _baseline, "coverage": _coverage, "optimal": _optimal, "reach": _reach, "carry": _carry}
 
 
 def print_report(result: dict[str, Any]) -> None:
