@@ -17,7 +17,7 @@ from typing import Any
 
 import click
 
-from lut.cli import plan_commands, replan_command, robustness_command, table_commands, view
+from lut.cli import plan_commands, process_end, replan_command, robustness_command, table_commands, view
 from lut.cli.exit_codes import ExitCode
 
 
@@ -77,5 +77,12 @@ for _command in (*plan_commands.COMMANDS, *table_commands.COMMANDS, *robustness_
     main.add_command(_command)
 
 
-if __name__ == "__main__":
+def run() -> None:
+    """The ``lutgen`` console script: :func:`main` in a process of its own, which a command that has flushed its
+    answer ends at once (:mod:`lut.cli.process_end`)."""
+    process_end.END_AT_ONCE = True
     main()
+
+
+if __name__ == "__main__":
+    run()

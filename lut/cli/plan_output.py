@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import sys
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
 from lut.cli.exit_codes import ExitCode
+from lut.cli.process_end import end_command, exit_now
 
 if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load the planner
     from lut.query.plan_costs import CostBreakdown, CostScorer
@@ -78,8 +78,9 @@ def export_and_verdict(result: GraspPlan, report: VerifyReport, out_path: str | 
         click.echo(f"wrote {csv_path}")
     if not report.feasible:
         click.echo("INFEASIBLE: " + "; ".join(report.violations), err=True)
-        sys.exit(ExitCode.INFEASIBLE)
+        exit_now(ExitCode.INFEASIBLE)
     click.echo("FEASIBLE")
+    end_command(ExitCode.OK)
 
 
 def refuse_without_plan(reason: Exception, elapsed_s: float, out_path: str | None, csv_path: str | None) -> NoReturn:
@@ -87,4 +88,4 @@ def refuse_without_plan(reason: Exception, elapsed_s: float, out_path: str | Non
     click.echo(f"INFEASIBLE ({elapsed_s:.1f} s): {reason}", err=True)
     if out_path or csv_path:
         click.echo("no plan written: there is no trajectory to export", err=True)
-    sys.exit(ExitCode.INFEASIBLE)
+    exit_now(ExitCode.INFEASIBLE)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from lut.cli import process_end
 from lut.cli.options import check_budget, check_plan_outputs, parse_floats
 from lut.cli.plan_output import cost_table, export_and_verdict, plan_table, query_block, refuse_without_plan
 from lut.cli.user_errors import user_errors
@@ -231,6 +232,8 @@ def _robust_query(tq: TableQuery, state: TargetState, robust: RobustRequest, bud
     from lut.query.robust_choice import candidate_lines, robust_query
     from planner.verify.verifier import summary_lines
 
+    if robust.jobs > 1:  # joblib's loky workers outlive a process that ends at once: the interpreter must end them
+        process_end.END_AT_ONCE = False
     choice = robust_query(tq, state, robust, budget_s)
     chosen = choice.chosen
     for line in plan_table(chosen.plan, chosen.report) + summary_lines(chosen.report):
