@@ -13,6 +13,7 @@ the failing checks tallied.
 
 from __future__ import annotations
 
+import sys
 from collections import Counter
 from typing import Any
 
@@ -73,18 +74,23 @@ def kind_carry(kind: Any, n: int, seed: int, budget_s: float) -> dict[str, Any]:
     steps += [("rate_deg_s", d, 0.0, d) for d in RATE_STEPS_DEG_S]
     runs: dict[str, list[dict[str, Any]]] = {f"{name} {d:g}": [] for name, d, _, _ in steps}
     planned = 0
-    for s in kind_states(kind, n, seed):
+    for i, s in enumerate(kind_states(kind, n, seed)):
         axis = _unit(rng)  # drawn for every state, so the directions do not depend on which plans are feasible
         state = TargetState(s.attitude_wxyz, np.radians(s.omega_body_deg_s))
         try:
             plan = planner.plan(state, deadline=Deadline.after(budget_s))
         except OutOfReach:
-            continue
-        if not verify(plan).feasible:
-            continue
-        planned += 1
-        for name, d, att, rate in steps:
-            runs[f"{name} {d:g}"].append(carried(planner, displaced(state, att, rate, axis), plan.parameters))
+            plan = None
+        held = []
+        if plan is not None and verify(plan).feasible:
+            planned += 1
+            for name, d, att, rate in steps:
+                run = carried(planner, displaced(state, att, rate, axis), plan.parameters)
+                runs[f"{name} {d:g}"].append(run)
+                held.append(f"{d:g} {'yes' if run['repaired'] else 'no'}")
+        print(f"bench: carry {kind.name} state {i + 1}/{n}: "
+              f"{'carried (attitude °, rate °/s): ' + ', '.join(held) if held else 'no feasible plan'}",
+              file=sys.stderr, flush=True)
     return {"states": n, "feasible_plans": planned, "steps": {key: _digest(r) for key, r in runs.items()}}
 
 
