@@ -1,1 +1,1 @@
-"""``lutgen build``: the parallel, resumable sweep of a grid, one child process per point."""
+"""``lutgen build``: the parallel, resumable sweep of a grid, each point in a child process with a hard time limit."""

@@ -29,6 +29,7 @@ from lut.build.options import BuildOptions, BuildSummary, check_options
 from lut.build.progress import Progress
 from lut.output.paths import Output, check_outputs
 from lut.solve.point_process import run_point
+from lut.solve.point_server import stop_all
 from lut.table.grid import Grid
 from lut.table.grid_config import GridConfig, load_grid
 from lut.table.journal import Journal
@@ -115,6 +116,7 @@ def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpat
         raise
     finally:
         journal.close()
+        stop_all()  # the solver processes this process kept (-j 1); a worker's end with its worker
         if client is not None:
             client.close()
 
@@ -158,10 +160,11 @@ def _solve_layer(grid: Grid, config: GridConfig, options: BuildOptions, layer: C
         if warm is not None and config.kind == "flat_spin":
             # the child reaches the parent's configuration Δφ/rate earlier
             shift = grid.start_delay_shift_s(grid.coordinates(parent), grid.coordinates(point), forward_turn=True)
-        # a point's plan ends before its timeout (its best plan kept, not killed), and a warm start that leads
-        # nowhere here is followed by a cold plan
+        # a point's plan ends before its timeout (its best plan kept, not killed), a warm start that leads nowhere
+        # here is followed by a cold plan, and a worker's points share one solver process (its planner built once)
         tasks.append(joblib.delayed(run_point)(options.solver, str(config.scenario_path), point, grid.state(point),
                                                None if warm is None else warm.parameters, shift,
                                                options.point_timeout_s, plan_budget_s=options.point_timeout_s,
-                                               cold_fallback=True, solver_kwargs=options.solver_kwargs()))
+                                               cold_fallback=True, solver_kwargs=options.solver_kwargs(),
+                                               keep_process=True))
     return parallel(tasks) if tasks else ()

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lut.solve.point_server import solve_served
 from lut.solve.point_worker import KWARG_PREFIX, WARM_PREFIX, load_npz, save_npz
 from lut.table.point_result import PointResult
 from lut.table.records import failed_result, from_record, parameter_fields
@@ -25,7 +26,8 @@ DEFAULT_SOLVER = "lut.solve.point_worker:solve_point"  # module:function the chi
 def run_point(solver: str, scenario_path: str, point: int, state: TargetState, warm: PlanParameters | None,
               warm_shift_s: float, timeout_s: float, max_wall_s: float | None = None,
               plan_budget_s: float | None = None, cold_fallback: bool = False,
-              timeout_name: str = "--point-timeout", solver_kwargs: dict[str, float] | None = None) -> PointResult:
+              timeout_name: str = "--point-timeout", solver_kwargs: dict[str, float] | None = None,
+              keep_process: bool = False) -> PointResult:
     """Solve one point in a child process; timeouts and crashes become failed results.
 
     ``warm``, shifted in time by ``warm_shift_s`` [s], is the solve's warm start. ``max_wall_s`` [s], when
@@ -35,6 +37,8 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
     infeasible (see :func:`lut.solve.point_worker.solve_point`);
     ``timeout_s`` [s] is the hard limit of the whole process, which a timeout's reason names as
     ``timeout_name`` (the option that set it). ``solver_kwargs``: further keyword arguments of the solver.
+    ``keep_process``: solve in this process's kept solver process (:mod:`lut.solve.point_server`: a build's points
+    share its planner) instead of a new one; the same limit, and a point over it or crashing ends that process.
     """
     with tempfile.TemporaryDirectory(prefix="lutgen-point-") as tmp:
         in_path, out_path = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
@@ -51,6 +55,14 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
         if plan_budget_s is not None:  # time.monotonic() is one clock for every process of the machine
             args["deadline_at_s"] = Deadline.after(plan_budget_s).at_s
         save_npz(in_path, args)
+        if keep_process:
+            served = solve_served(solver, in_path, out_path, timeout_s)
+            if served.timed_out:
+                return failed_result(point, f"timeout: exceeded {timeout_name} {timeout_s:g} s",
+                                     time.perf_counter() - t0)
+            if not served.answered or not out_path.exists():
+                return failed_result(point, served.why or "worker gave no answer", time.perf_counter() - t0)
+            return from_record(load_npz(out_path))
         try:
             proc = subprocess.run([sys.executable, "-m", "lut.solve.point_worker", solver, str(in_path),
                                    str(out_path), str(os.getpid())], capture_output=True, text=True, timeout=timeout_s)

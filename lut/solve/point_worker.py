@@ -1,4 +1,5 @@
-"""Solve one target state in its own process: ``python -m lut.solve.point_worker SOLVER IN.npz OUT.npz [PARENT_PID]``.
+"""Solve one target state in its own process: ``python -m lut.solve.point_worker SOLVER IN.npz OUT.npz [PARENT_PID]``,
+or a build's points one after another in one process: ``python -m lut.solve.point_worker --serve SOLVER PARENT_PID``.
 
 A build runs every point in a child process so that a point that exceeds its time limit can be
 killed, and a point that crashes (segfault, out of memory) takes down only itself: both are recorded
@@ -17,6 +18,7 @@ import importlib
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -43,6 +45,7 @@ if TYPE_CHECKING:
 
 WARM_PREFIX = "warm/"  # the warm start's parameter fields in IN.npz
 KWARG_PREFIX = "kw/"  # further keyword arguments of the solver (e.g. a build's --robust), by name
+DONE_TOKEN = "lutgen-point-done"  # a served point's answer line (a solver's own prints on stdout are skipped)
 _PLANNERS: dict[str, Planner] = {}
 
 
@@ -140,12 +143,42 @@ def load_npz(path: Path) -> dict[str, Any]:
 
 
 def main(argv: list[str]) -> int:
+    """``SOLVER IN.npz OUT.npz [PARENT_PID]``: one point; ``--serve SOLVER PARENT_PID``: :func:`serve`."""
+    if argv and argv[0] == "--serve":
+        return serve(argv[1], int(argv[2]))
     solver_spec, in_path, out_path, *parent = argv
     # a killed build (or query) must not leave this solve running to its time limit
     exit_with_parent(int(parent[0]) if parent else None)
+    answer(resolve(solver_spec), Path(in_path), Path(out_path))
+    return 0
+
+
+def serve(solver_spec: str, parent_pid: int) -> int:
+    """Solve the points asked on stdin, one line ``IN.npz OUT.npz`` each, in this one process, answering each with
+    the line ``DONE_TOKEN OUT.npz`` on stdout once OUT.npz is written; ends when stdin closes or the parent dies.
+
+    A build's points then share one planner per scenario (its problems built once, not once per point); a point
+    that exceeds its time limit or crashes takes this process with it, and the next point starts a new one
+    (:mod:`lut.solve.point_process`)."""
+    exit_with_parent(parent_pid)
+    solver = resolve(solver_spec)
+    for line in sys.stdin:
+        in_path, out_path = line.split()
+        answer(solver, Path(in_path), Path(out_path))
+        print(f"{DONE_TOKEN} {out_path}", flush=True)
+    return 0
+
+
+def resolve(solver_spec: str) -> Callable[..., Record]:
+    """The solver ``module:function``."""
     module, _, name = solver_spec.partition(":")
-    solver = getattr(importlib.import_module(module), name)
-    args = load_npz(Path(in_path))
+    return getattr(importlib.import_module(module), name)
+
+
+def answer(solver: Callable[..., Record], in_path: Path, out_path: Path) -> None:
+    """Solve the point of ``in_path`` with ``solver`` and write its record to ``out_path``; an exception is this
+    point's failure, recorded."""
+    args = load_npz(in_path)
     warm = parameters_from_fields({k[len(WARM_PREFIX):]: v for k, v in args.items() if k.startswith(WARM_PREFIX)})
     point = int(args["point"])
     extra: dict[str, Any] = {key: float(args[key]) for key in ("max_wall_s", "deadline_at_s") if key in args}
@@ -157,8 +190,7 @@ def main(argv: list[str]) -> int:
                      float(args["warm_shift_s"]), **extra)
     except Exception as exc:  # noqa: BLE001 - a failure of this point only: recorded, the build goes on
         rec = to_record(failed_result(point, f"{type(exc).__name__}: {exc}".splitlines()[0]))
-    save_npz(Path(out_path), rec)
-    return 0
+    save_npz(out_path, rec)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,113 @@
+"""A solver process kept for a build's successive points: one planner per scenario built once, not once per point.
+
+Each point still has its hard time limit and its own failure: a point over its limit kills the process, a crash
+ends it, and either way that point alone is recorded failed; the next point starts a new process
+(:func:`lut.solve.point_worker.serve` is the other end). One process per solver and per process that asks (a build's
+loky or dask worker); it ends when its asker closes its stdin or dies.
+"""
+
+from __future__ import annotations
+
+import os
+import selectors
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+from lut.solve.point_worker import DONE_TOKEN
+
+
+@dataclass
+class ServedAnswer:
+    """How a served point ended: ``answered`` (OUT.npz written), else ``timed_out`` or crashed (``why``)."""
+
+    answered: bool
+    timed_out: bool = False
+    why: str = ""
+
+
+@dataclass
+class _Server:
+    process: subprocess.Popen
+    stderr: IO[bytes]  # a temporary file: a pipe nobody reads could fill and stall the solver
+
+
+_SERVERS: dict[str, _Server] = {}
+STOP_WAIT_S = 5.0  # an idle kept process given this long to end on its own when stopped [s]
+
+
+def solve_served(solver: str, in_path: Path, out_path: Path, timeout_s: float) -> ServedAnswer:
+    """Ask the kept process of ``solver`` (started when there is none) to solve IN.npz into OUT.npz within
+    ``timeout_s`` [s]; a process that runs over or dies is dropped (killed) and the answer says so."""
+    server = _SERVERS.get(solver)
+    if server is None or server.process.poll() is not None:
+        server = _SERVERS[solver] = _start(solver)
+    try:
+        server.process.stdin.write(f"{in_path} {out_path}\n".encode())
+        server.process.stdin.flush()
+    except (BrokenPipeError, OSError):
+        return _drop(solver, timed_out=False)
+    if _wait_for_answer(server.process, out_path, timeout_s):
+        return ServedAnswer(True)
+    return _drop(solver, timed_out=server.process.poll() is None)
+
+
+def _start(solver: str) -> _Server:
+    stderr = tempfile.TemporaryFile()
+    process = subprocess.Popen([sys.executable, "-m", "lut.solve.point_worker", "--serve", solver, str(os.getpid())],
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr)
+    return _Server(process, stderr)
+
+
+def _wait_for_answer(process: subprocess.Popen, out_path: Path, timeout_s: float) -> bool:
+    """True once ``process`` says OUT.npz is written, False when it ends or ``timeout_s`` [s] passes first (read
+    unbuffered: a buffered reader could hold the answer line while the selector waits for more)."""
+    end = time.monotonic() + timeout_s
+    expected = f"{DONE_TOKEN} {out_path}".encode()
+    fd = process.stdout.fileno()
+    pending = b""
+    with selectors.DefaultSelector() as sel:
+        sel.register(fd, selectors.EVENT_READ)
+        while (left := end - time.monotonic()) > 0:
+            if not sel.select(left):
+                return False
+            chunk = os.read(fd, 65536)
+            if not chunk:  # the process ended
+                return False
+            *lines, pending = (pending + chunk).split(b"\n")
+            if any(line.strip() == expected for line in lines):
+                return True
+    return False
+
+
+def _drop(solver: str, timed_out: bool) -> ServedAnswer:
+    """End and forget ``solver``'s process; the answer carries the last line it wrote on stderr."""
+    server = _SERVERS.pop(solver)
+    if server.process.poll() is None:
+        server.process.kill()
+    code = server.process.wait()
+    server.process.stdout.close()
+    server.stderr.seek(0)
+    last = (server.stderr.read().decode(errors="replace").strip().splitlines() or ["no output"])[-1]
+    server.stderr.close()
+    how = f"signal {-code}" if code < 0 else f"exit code {code}"
+    return ServedAnswer(False, timed_out, "" if timed_out else f"worker crashed ({how}): {last}")
+
+
+def stop_all() -> None:
+    """End every kept solver process of this process (stdin closed: an idle one ends at once), e.g. at the end of a
+    build."""
+    for solver in list(_SERVERS):
+        server = _SERVERS.pop(solver)
+        server.process.stdin.close()
+        try:
+            server.process.wait(timeout=STOP_WAIT_S)
+        except subprocess.TimeoutExpired:
+            server.process.kill()
+            server.process.wait()
+        server.process.stdout.close()
+        server.stderr.close()
