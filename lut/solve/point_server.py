@@ -15,6 +15,7 @@ import sys
 import tempfile
 import time
 from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
 from typing import IO
 
@@ -36,6 +37,12 @@ class _Server:
     stderr: IO[bytes]  # a temporary file: a pipe nobody reads could fill and stall the solver
 
 
+class _Outcome(Enum):
+    ANSWERED = "answered"
+    ENDED = "ended"
+    TIMED_OUT = "timed out"
+
+
 _SERVERS: dict[str, _Server] = {}
 STOP_WAIT_S = 5.0  # an idle kept process given this long to end on its own when stopped [s]
 
@@ -51,9 +58,10 @@ def solve_served(solver: str, in_path: Path, out_path: Path, timeout_s: float) -
         server.process.stdin.flush()
     except (BrokenPipeError, OSError):
         return _drop(solver, timed_out=False)
-    if _wait_for_answer(server.process, out_path, timeout_s):
+    outcome = _wait_for_answer(server.process, out_path, timeout_s)
+    if outcome is _Outcome.ANSWERED:
         return ServedAnswer(True)
-    return _drop(solver, timed_out=server.process.poll() is None)
+    return _drop(solver, timed_out=outcome is _Outcome.TIMED_OUT)
 
 
 def _start(solver: str) -> _Server:
@@ -63,9 +71,9 @@ def _start(solver: str) -> _Server:
     return _Server(process, stderr)
 
 
-def _wait_for_answer(process: subprocess.Popen, out_path: Path, timeout_s: float) -> bool:
-    """True once ``process`` says OUT.npz is written, False when it ends or ``timeout_s`` [s] passes first (read
-    unbuffered: a buffered reader could hold the answer line while the selector waits for more)."""
+def _wait_for_answer(process: subprocess.Popen, out_path: Path, timeout_s: float) -> _Outcome:
+    """Whether ``process`` said OUT.npz is written, ended first, or let ``timeout_s`` [s] pass (read unbuffered: a
+    buffered reader could hold the answer line while the selector waits for more)."""
     end = time.monotonic() + timeout_s
     expected = f"{DONE_TOKEN} {out_path}".encode()
     fd = process.stdout.fileno()
@@ -74,14 +82,14 @@ def _wait_for_answer(process: subprocess.Popen, out_path: Path, timeout_s: float
         sel.register(fd, selectors.EVENT_READ)
         while (left := end - time.monotonic()) > 0:
             if not sel.select(left):
-                return False
+                break
             chunk = os.read(fd, 65536)
-            if not chunk:  # the process ended
-                return False
+            if not chunk:  # its stdout closed: the process ended (it may not be reaped yet)
+                return _Outcome.ENDED
             *lines, pending = (pending + chunk).split(b"\n")
             if any(line.strip() == expected for line in lines):
-                return True
-    return False
+                return _Outcome.ANSWERED
+    return _Outcome.TIMED_OUT
 
 
 def _drop(solver: str, timed_out: bool) -> ServedAnswer:
