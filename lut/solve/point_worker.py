@@ -47,6 +47,7 @@ WARM_PREFIX = "warm/"  # the warm start's parameter fields in IN.npz
 KWARG_PREFIX = "kw/"  # further keyword arguments of the solver (e.g. a build's --robust), by name
 DONE_TOKEN = "lutgen-point-done"  # a served point's answer line (a solver's own prints on stdout are skipped)
 _PLANNERS: dict[str, Planner] = {}
+PLANNERS_KEPT = 2  # a planner holds its compiled problems (hundreds of MB): a kept process keeps few
 
 
 def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
@@ -113,16 +114,22 @@ def verified_plan(planner: Planner, point: int, state: TargetState, warm_start: 
 
 
 def _planner(scenario_path: str, max_wall_s: float | None) -> Planner:
-    """The planner of ``scenario_path`` (built once per process and wall-time limit [s])."""
+    """The planner of ``scenario_path`` as its files are now (built once per process, model and wall-time limit [s]:
+    a kept process serves later builds too, and an edited scenario, robot or target gets a new planner); the
+    :data:`PLANNERS_KEPT` last used are kept."""
+    from lut.table.model_identity import table_hash
     from planner.config.scenario import load_scenario
     from planner.plan import Planner
 
-    key = f"{scenario_path}|{max_wall_s}"
+    sc = load_scenario(scenario_path)
+    key = f"{table_hash(sc)}|{max_wall_s}"
     if key not in _PLANNERS:
-        sc = load_scenario(scenario_path)
         if max_wall_s is not None:
             sc = replace(sc, solver=replace(sc.solver, max_wall_s=min(sc.solver.max_wall_s, max_wall_s)))
         _PLANNERS[key] = Planner(sc)
+    _PLANNERS[key] = _PLANNERS.pop(key)  # the last used last
+    while len(_PLANNERS) > PLANNERS_KEPT:
+        del _PLANNERS[next(iter(_PLANNERS))]
     return _PLANNERS[key]
 
 
