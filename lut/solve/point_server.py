@@ -51,17 +51,29 @@ def solve_served(solver: str, in_path: Path, out_path: Path, timeout_s: float) -
     """Ask the kept process of ``solver`` (started when there is none) to solve IN.npz into OUT.npz within
     ``timeout_s`` [s]; a process that runs over or dies is dropped (killed) and the answer says so."""
     server = _SERVERS.get(solver)
-    if server is None or server.process.poll() is not None:
+    if server is None or server.process.poll() is not None or not _ask(server, in_path, out_path):
+        if server is not None:  # it ended while idle (e.g. the kernel's OOM killer): not this point's failure
+            _drop(solver, timed_out=False)
         server = _SERVERS[solver] = _start(solver)
-    try:
-        server.process.stdin.write(f"{in_path} {out_path}\n".encode())
-        server.process.stdin.flush()
-    except (BrokenPipeError, OSError):
-        return _drop(solver, timed_out=False)
+        if not _ask(server, in_path, out_path):
+            return _drop(solver, timed_out=False)
     outcome = _wait_for_answer(server.process, out_path, timeout_s)
     if outcome is _Outcome.ANSWERED:
         return ServedAnswer(True)
     return _drop(solver, timed_out=outcome is _Outcome.TIMED_OUT)
+
+
+def _ask(server: _Server, in_path: Path, out_path: Path) -> bool:
+    """Send one point's request; False when the process can no longer be asked. Its stderr starts anew, so that a
+    crash's reason is this point's."""
+    server.stderr.seek(0)
+    server.stderr.truncate()  # the child shares this file's offset: it writes from the start again
+    try:
+        server.process.stdin.write(f"{in_path} {out_path}\n".encode())
+        server.process.stdin.flush()
+    except (BrokenPipeError, OSError):
+        return False
+    return True
 
 
 def _start(solver: str) -> _Server:

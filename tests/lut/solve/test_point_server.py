@@ -87,3 +87,19 @@ def test_stopping_ends_the_kept_process():
     process = point_server._SERVERS[FAKE].process
     point_server.stop_all()
     assert process.poll() is not None and not point_server._SERVERS
+
+
+def test_a_process_that_died_idle_is_replaced_without_failing_the_next_point():
+    assert _solve(0, keep=True).status == "feasible"
+    process = point_server._SERVERS[FAKE].process
+    process.kill()  # e.g. the kernel's OOM killer, between two points
+    process.wait()
+    assert _solve(1, keep=True).status == "feasible" and _pid() != process.pid
+
+
+def test_a_crash_reports_its_own_last_words_not_an_earlier_point_s(monkeypatch):
+    monkeypatch.setenv("LUTGEN_FAKE_CRASH", "1")
+    assert _solve(0, keep=True).status == "feasible"
+    point_server._SERVERS[FAKE].stderr.write(b"an earlier point's warning\n")  # as if point 0 had written it
+    failed = _solve(1, keep=True)
+    assert failed.failure_reason == "worker crashed (signal 9): no output"
