@@ -433,6 +433,21 @@ def test_a_displaced_state_is_that_far_in_attitude_and_rate():
     np.testing.assert_allclose(moved.omega_body_rad_s - state.omega_body_rad_s, np.radians(0.5) * axis, atol=1e-15)
 
 
+def test_no_displacement_is_the_state_itself_and_a_half_turn_is_exact():
+    from planner.model.target_state import TargetState
+
+    state = TargetState(np.array([0.5, 0.5, -0.5, 0.5]), np.radians([1.0, -2.0, 3.0]))
+    axis = np.array([0.0, 0.0, 1.0])  # a body axis exactly
+    same = carry.displaced(state, 0.0, 0.0, axis)
+    np.testing.assert_allclose(same.attitude_wxyz, state.attitude_wxyz, atol=1e-15)
+    np.testing.assert_array_equal(same.omega_body_rad_s, state.omega_body_rad_s)
+    w, x, y, z = state.attitude_wxyz
+    W, X, Y, Z = carry.displaced(state, 180.0, 0.0, axis).attitude_wxyz
+    relative = Rotation.from_quat([x, y, z, w]).inv() * Rotation.from_quat([X, Y, Z, W])
+    assert abs(relative.magnitude() - np.pi) < 1e-12
+    np.testing.assert_allclose(np.abs(relative.as_rotvec()), [0.0, 0.0, np.pi], atol=1e-12)  # ±π about z: one turn
+
+
 def test_the_largest_carry_stops_at_the_first_displacement_below_the_bar():
     steps = {"attitude_deg 2.5": {"repaired": 1.0}, "attitude_deg 5": {"repaired": 0.9},
              "attitude_deg 10": {"repaired": 0.5}, "attitude_deg 20": {"repaired": 0.95},

@@ -10,8 +10,16 @@ table's.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+from planner.deadline import NO_DEADLINE, Deadline
 from planner.verify.kinematics import TIME_TOL_S
-from planner.verify.verifier import VerifyReport
+from planner.verify.verifier import VerifyReport, verify
+
+if TYPE_CHECKING:
+    from planner.model.target_state import TargetState
+    from planner.plan import GraspPlan, Planner
+    from planner.plan_parameters import PlanParameters
 
 # IPOPT iterations a repair gets: the repairs that succeeded took 0-5 (flat_spin_I_energy's off-grid queries), the ones
 # that failed ran to 116-120 (24-32 s each; the demo's query spent 45 s on three of them, 18 s with this cap)
@@ -28,3 +36,17 @@ def stabilization_only(report: VerifyReport) -> bool:
     return bool(failed) and all(
         c.name not in BEFORE_THE_GRASP and c.t_s is not None and c.t_s >= report.t_grasp_s - TIME_TOL_S
         for c in failed)
+
+
+def repaired_plan(planner: Planner, state: TargetState, parameters: PlanParameters, report: VerifyReport,
+                  deadline: Deadline = NO_DEADLINE) -> tuple[GraspPlan, VerifyReport] | None:
+    """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
+    :data:`REPAIR_ITERATIONS` iterations, ended at ``deadline``), when ``report`` (its verification) failed only from
+    the grasp on and the repaired plan verifies feasible: ``(plan, its report)``; else None."""
+    if not stabilization_only(report):
+        return None
+    plan = planner.simulate(state, parameters, REPAIR_ITERATIONS, deadline)
+    if not plan.stabilization.success:
+        return None
+    repaired = verify(plan)
+    return (plan, repaired) if repaired.feasible else None

@@ -32,7 +32,7 @@ from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_
 from lut.query.least_violating import violates_less
 from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
-from lut.query.stabilization_repair import REPAIR_ITERATIONS, stabilization_only
+from lut.query.stabilization_repair import repaired_plan
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
 from lut.table.grid import Grid
@@ -270,14 +270,10 @@ class TableQuery:
         :data:`~lut.query.stabilization_repair.REPAIR_ITERATIONS` iterations, ended :data:`FINISH_RESERVE_S` before
         ``deadline``), when ``report`` (its verification) failed only from the grasp on and the repair verifies
         feasible; else None."""
-        if not stabilization_only(report) or deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
+        if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
             return None
-        plan = self.planner.simulate(state, self._in_window(state, parameters), REPAIR_ITERATIONS,
-                                     deadline.earlier(FINISH_RESERVE_S))
-        if not plan.stabilization.success:
-            return None
-        repaired = verify(plan)
-        return (plan, repaired) if repaired.feasible else None
+        return repaired_plan(self.planner, state, self._in_window(state, parameters), report,
+                             deadline.earlier(FINISH_RESERVE_S))
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lut.solve.point_server import solve_served
+from lut.solve.point_server import ServedAnswer, crash_reason, solve_served
 from lut.solve.point_worker import KWARG_PREFIX, WARM_PREFIX, load_npz, save_npz
 from lut.table.point_result import PointResult
 from lut.table.records import failed_result, from_record, parameter_fields
@@ -55,21 +55,23 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
         if plan_budget_s is not None:  # time.monotonic() is one clock for every process of the machine
             args["deadline_at_s"] = Deadline.after(plan_budget_s).at_s
         save_npz(in_path, args)
-        if keep_process:
-            served = solve_served(solver, in_path, out_path, timeout_s)
-            if served.timed_out:
-                return failed_result(point, f"timeout: exceeded {timeout_name} {timeout_s:g} s",
-                                     time.perf_counter() - t0)
-            if not served.answered or not out_path.exists():
-                return failed_result(point, served.why or "worker gave no answer", time.perf_counter() - t0)
-            return from_record(load_npz(out_path))
-        try:
-            proc = subprocess.run([sys.executable, "-m", "lut.solve.point_worker", solver, str(in_path),
-                                   str(out_path), str(os.getpid())], capture_output=True, text=True, timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            return failed_result(point, f"timeout: exceeded {timeout_name} {timeout_s:g} s", time.perf_counter() - t0)
-        if proc.returncode != 0 or not out_path.exists():
-            last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-            how = f"signal {-proc.returncode}" if proc.returncode < 0 else f"exit code {proc.returncode}"
-            return failed_result(point, f"worker crashed ({how}): {last}", time.perf_counter() - t0)
+        solve = solve_served if keep_process else _solve_in_new_process
+        answer = solve(solver, in_path, out_path, timeout_s)
+        elapsed = time.perf_counter() - t0
+        if answer.timed_out:
+            return failed_result(point, f"timeout: exceeded {timeout_name} {timeout_s:g} s", elapsed)
+        if not answer.answered or not out_path.exists():
+            return failed_result(point, answer.why or "worker gave no answer", elapsed)
         return from_record(load_npz(out_path))
+
+
+def _solve_in_new_process(solver: str, in_path: Path, out_path: Path, timeout_s: float) -> ServedAnswer:
+    """IN.npz solved into OUT.npz by a process of its own, killed after ``timeout_s`` [s]."""
+    try:
+        proc = subprocess.run([sys.executable, "-m", "lut.solve.point_worker", solver, str(in_path), str(out_path),
+                               str(os.getpid())], capture_output=True, text=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return ServedAnswer(False, timed_out=True)
+    if proc.returncode != 0 or not out_path.exists():
+        return ServedAnswer(False, why=crash_reason(proc.returncode, proc.stderr))
+    return ServedAnswer(True)

@@ -24,7 +24,7 @@ from lut.solve.point_worker import DONE_TOKEN
 
 @dataclass
 class ServedAnswer:
-    """How a served point ended: ``answered`` (OUT.npz written), else ``timed_out`` or crashed (``why``)."""
+    """How a point's process ended: ``answered`` (OUT.npz written), else ``timed_out`` or crashed (``why``)."""
 
     answered: bool
     timed_out: bool = False
@@ -112,10 +112,16 @@ def _drop(solver: str, timed_out: bool) -> ServedAnswer:
     code = server.process.wait()
     server.process.stdout.close()
     server.stderr.seek(0)
-    last = (server.stderr.read().decode(errors="replace").strip().splitlines() or ["no output"])[-1]
+    words = server.stderr.read().decode(errors="replace")
     server.stderr.close()
-    how = f"signal {-code}" if code < 0 else f"exit code {code}"
-    return ServedAnswer(False, timed_out, "" if timed_out else f"worker crashed ({how}): {last}")
+    return ServedAnswer(False, timed_out, "" if timed_out else crash_reason(code, words))
+
+
+def crash_reason(returncode: int, stderr_text: str) -> str:
+    """``worker crashed (signal N | exit code N): <its last line on stderr>``."""
+    last = (stderr_text.strip().splitlines() or ["no output"])[-1]
+    how = f"signal {-returncode}" if returncode < 0 else f"exit code {returncode}"
+    return f"worker crashed ({how}): {last}"
 
 
 def stop_all() -> None:

@@ -49,14 +49,11 @@ def displaced(state: Any, attitude_deg: float, rate_deg_s: float, axis: np.ndarr
 
 def carried(planner: Any, state: Any, parameters: Any) -> dict[str, Any]:
     """The plan of ``parameters`` re-simulated and verified at ``state``; repaired as a query repairs it."""
-    from lut.query.stabilization_repair import REPAIR_ITERATIONS, stabilization_only
+    from lut.query.stabilization_repair import repaired_plan
     from planner.verify.verifier import verify
 
     report = verify(planner.simulate(state, parameters))
-    repaired = report.feasible
-    if not report.feasible and stabilization_only(report):
-        again = planner.simulate(state, parameters, REPAIR_ITERATIONS)
-        repaired = again.stabilization.success and verify(again).feasible
+    repaired = report.feasible or repaired_plan(planner, state, parameters, report) is not None
     return {"as_is": bool(report.feasible), "repaired": bool(repaired),
             "failed": [c.name for c in report.checks.values() if not c.passed]}
 
