@@ -14,6 +14,10 @@ The same callback can also end a solve after an iteration budget (``max_iteratio
 grasp is there to try (:mod:`planner.plan_grasps`). The budget works with or without the feasibility test.
 And it ends a solve once the plan's deadline (:mod:`planner.deadline`) has passed (``out_of_time`` afterwards):
 the iterate reached by then is the answer.
+
+It also keeps the least violating iterate of the solve (:meth:`least_violating`): an unsuccessful solve's last
+iterate can be anywhere (a stabilization stopped at its deadline ended with a joint 190 rad past its limit), while
+the least violating one is what the solve came closest to, which a plan that fails should show.
 """
 
 from __future__ import annotations
@@ -25,6 +29,16 @@ from numpy.typing import NDArray
 from planner.deadline import NO_DEADLINE, Deadline
 
 Array = NDArray[np.float64]
+
+ZERO_BOUND = 1e-9  # a bound this small is zero: the excess beyond it counts in the row's own unit
+
+
+def row_scales(lbg: Array, ubg: Array) -> Array:
+    """Per constraint row, the magnitude of its largest finite bound (1 where every bound is ~0 or infinite): the
+    unit its excess is counted in."""
+    bounds = np.where(np.isfinite(lbg), np.abs(lbg), 0.0), np.where(np.isfinite(ubg), np.abs(ubg), 0.0)
+    scale = np.maximum(*bounds)
+    return np.where(scale > ZERO_BOUND, scale, 1.0)
 
 
 class FeasibilityStop(ca.Callback):
@@ -47,6 +61,9 @@ class FeasibilityStop(ca.Callback):
         self.deadline = NO_DEADLINE
         self.out_of_time = False
         self._calls = 0
+        self._row_scale = np.ones(n_g)
+        self._least_violation = np.inf
+        self._least_violating: tuple[Array, float] | None = None  # (x, f)
         self.construct(name, {})
 
     def arm(self, lbg: Array, ubg: Array, stop_when_feasible: bool = True, max_iterations: int | None = None,
@@ -64,6 +81,20 @@ class FeasibilityStop(ca.Callback):
         self.budget_exhausted = False
         self.out_of_time = False
         self._calls = 0
+        self._row_scale = row_scales(self.lbg, self.ubg)
+        self._least_violation, self._least_violating = np.inf, None
+
+    def violation(self, g: Array) -> float:
+        """Σ over the rows of ``g`` of its excess beyond the armed bounds, each relative to its bound's magnitude
+        (absolute where the bound is ~0), so that rad, m and N·m add up as "limits over"."""
+        excess = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0)
+        return float(np.sum(excess / self._row_scale)) if not np.isnan(g).any() else np.inf
+
+    def least_violating(self, x: Array, f: float, g: Array) -> tuple[Array, float]:
+        """``(x, f)`` of the solve's least violating iterate, the given final iterate ``(x, f, g)`` included."""
+        if self._least_violating is not None and self._least_violation < self.violation(g):
+            return self._least_violating
+        return x, f
 
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
@@ -85,9 +116,13 @@ class FeasibilityStop(ca.Callback):
     def eval(self, arg: list) -> list:
         iteration = self._calls  # IPOPT calls back once per iteration, iteration 0 (the start) included
         self._calls += 1
+        x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
+        g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
+        relative = self.violation(g)
+        if relative < self._least_violation:
+            self._least_violation = relative
+            self._least_violating = x.copy(), float(arg[ca.nlpsol_out().index("f")])
         if self.stop_when_feasible:
-            x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
-            g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             violation = float(np.max(np.maximum(self.lbg - g, g - self.ubg), initial=0.0))
             self.stopped = violation <= self.constraint_tol and bool(np.all(x[self.slack_index] <= self.slack_tol))
         self.budget_exhausted = not self.stopped and self.max_iterations is not None \

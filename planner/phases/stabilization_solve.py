@@ -130,9 +130,12 @@ def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Ar
     sol = problem.solver(x0=w0, p=par, lbx=problem.lbw, ubx=problem.ubw, lbg=lbg, ubg=ubg)
     elapsed = time.perf_counter() - t0
     stats = problem.solver.stats()
-    P = np.asarray(sol["x"]).ravel()[problem.decision.slice("spline_params")]
-    M, _, d = (np.asarray(a).ravel() for a in problem.outputs(P, par))
+    x, cost = np.asarray(sol["x"]).ravel(), float(sol["f"])
     success, status = bool(stats["success"]), SolveOutcome.from_ipopt(str(stats["return_status"]))
+    if not (success or problem.stop.stopped):  # what the solve came closest to, not where it stopped
+        x, cost = problem.stop.least_violating(x, cost, np.asarray(sol["g"]).ravel())
+    P = x[problem.decision.slice("spline_params")]
+    M, _, d = (np.asarray(a).ravel() for a in problem.outputs(P, par))
     if problem.stop.stopped:
         success, status = True, SolveOutcome.FEASIBLE_POINT_FOUND
     elif problem.stop.budget_exhausted:
@@ -140,4 +143,4 @@ def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Ar
     elif problem.stop.out_of_time:
         success, status = False, SolveOutcome.OUT_OF_TIME
     return StabilizationSolution(P, success, status, int(stats["iter_count"]), elapsed, problem.build_time_s,
-                                 float(sol["f"]), float(np.abs(M).max()), float(d.min()))
+                                 cost, float(np.abs(M).max()), float(d.min()))

@@ -12,6 +12,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -297,3 +298,37 @@ def test_a_torque_peak_between_via_points_tightens_the_bound_and_resolves(proble
     scales.clear()
     assert held(_OverLimitStandIn(problem, [9.99]), grasp, first, 120, stabilization_solve.NO_DEADLINE) is first
     assert scales == []
+
+
+def _relative_excess(problem, params, par) -> float:
+    """Σ over the NLP's constraint rows of the excess beyond the bounds, relative to each bound (written here,
+    apart from the callback's)."""
+    g = np.asarray(problem.solver.get_function("nlp_g")(params, par)).ravel()
+    total = 0.0
+    for value, lo, hi in zip(g, problem.lbg, problem.ubg, strict=True):
+        bound = max(abs(b) for b in (lo, hi) if np.isfinite(b)) if np.isfinite([lo, hi]).any() else 0.0
+        over = max(lo - value, value - hi, 0.0)
+        total += over / (bound if bound > 1e-9 else 1.0)
+    return total
+
+
+def test_a_failing_stabilization_answers_with_its_least_violating_iterate(problem, scanned_grasps, monkeypatch):
+    """From scenario II's hopeless grasp (cold), 15 iterations of the full NLP, whose violation grows again after
+    iteration 14: the answer is the least violating of the iterates IPOPT went through (recorded as it handed them
+    to the callback), by a violation computed here from the NLP's own constraint function."""
+    hopeless = scanned_grasps[0]
+    par = problem.parameters(hopeless)
+    assert problem.n_extra == 0
+    iterates = []
+    callback = type(problem.stop).eval
+
+    def recording(arg):
+        iterates.append(np.asarray(arg[ca.nlpsol_out().index("x")]).ravel().copy())
+        return callback(problem.stop, arg)
+
+    monkeypatch.setattr(problem.stop, "eval", recording)
+    answer = stabilization_solve.solve_once(problem, hopeless, None, 15)
+    assert not answer.success and answer.iterations == 15 and len(iterates) == 16
+    violations = [_relative_excess(problem, x, par) for x in iterates]
+    assert min(violations) < violations[-1]  # the last iterate is not the least violating one
+    np.testing.assert_array_equal(answer.params, iterates[int(np.argmin(violations))])
