@@ -9,6 +9,8 @@ the variant's, so a change of either file makes a table built from it stale.
 
 from __future__ import annotations
 
+import re
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,6 +43,17 @@ def resolve_variant(path: Path, data: dict[str, Any], text: str) -> ResolvedScen
     own = {k: v for k, v in data.items() if k != EXTENDS}
     return ResolvedScenario(merged(base_data, own), base_text + TEXT_SEPARATOR.format(name=path.name) + text,
                             base_path)
+
+
+def identity_name(text: str) -> str:
+    """The scenario name an identity text declares (a table's ``scenario_text``): a variant's own ``name``, else its
+    base's. The identity text of a variant is not one TOML document (both files declare their tables)."""
+    parts = re.split(re.escape(TEXT_SEPARATOR).replace(re.escape("{name}"), ".*?"), text)
+    for part in reversed(parts):
+        name = tomllib.loads(part).get("name")
+        if name is not None:
+            return str(name)
+    raise FieldValueError("scenario text", "name", "is missing", None)
 
 
 def merged(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:

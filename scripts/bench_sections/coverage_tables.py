@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 from bench_sections.common import relative
@@ -12,9 +11,10 @@ from bench_sections.common import relative
 def table_identity(path: Path) -> tuple[str, str]:
     """``(scenario name, grid kind)`` a table was built for (its root attributes; refused tables raise)."""
     from lut.table.store import Table
+    from planner.config.variant import identity_name
 
     attrs = Table.open(path).attrs
-    return str(tomllib.loads(attrs["scenario_text"])["name"]), str(attrs["grid_kind"])
+    return identity_name(attrs["scenario_text"]), str(attrs["grid_kind"])
 
 
 def find_tables(folder: Path, kinds: list[tuple[str, str, str]]) -> tuple[dict[str, Path], list[str]]:

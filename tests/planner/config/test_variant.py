@@ -11,6 +11,7 @@ import pytest
 
 from lut.table.model_identity import table_hash
 from planner.config.scenario import load_scenario
+from planner.config.variant import TEXT_SEPARATOR, identity_name
 from planner.errors import ConfigError, UnknownFieldError
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -89,3 +90,20 @@ def test_a_plan_is_never_written_over_the_base_of_its_variant(tmp_path):
     before = base.read_bytes()
     assert_one_line_error(lutgen_in_process("plan", path, "--out", base), "--out")
     assert base.read_bytes() == before
+
+
+@pytest.mark.parametrize("name", ["scenario_I", "scenario_II", *VARIANTS])
+def test_the_identity_text_names_its_scenario(name):
+    """A table stores the identity text; a variant's is its base's text then its own (two TOML documents, both with
+    a [costs] table): its name is the variant's."""
+    assert identity_name(load_scenario(SCENARIOS / f"{name}.toml").text) == name
+
+
+def test_a_variant_without_a_name_of_its_own_is_named_by_its_base(tmp_path):
+    shutil.copy(SCENARIOS / "scenario_II.toml", tmp_path / "base.toml")
+    (tmp_path / "variant.toml").write_text('extends = "base.toml"\n[costs]\napproach_energy = 1.0\n', encoding="utf-8")
+    text = (tmp_path / "base.toml").read_text(encoding="utf-8") + TEXT_SEPARATOR.format(name="variant.toml") + \
+        (tmp_path / "variant.toml").read_text(encoding="utf-8")
+    assert identity_name(text) == "scenario_II"
+    with pytest.raises(ConfigError):
+        identity_name("[costs]\napproach_energy = 1.0\n")
