@@ -16,8 +16,8 @@ And it ends a solve once the plan's deadline (:mod:`planner.deadline`) has passe
 the iterate reached by then is the answer.
 
 It also keeps the least violating iterate of the solve (:meth:`least_violating`): an unsuccessful solve's last
-iterate can be anywhere (a stabilization stopped at its deadline ended with a joint 190 rad past its limit), while
-the least violating one is what the solve came closest to, which a plan that fails should show.
+iterate can be anywhere, while the least violating one is what the solve came closest to, which a plan that fails
+should show.
 """
 
 from __future__ import annotations
