@@ -4,20 +4,16 @@ interpolated plan can be absurd: a joint 190 rad past its limit)."""
 
 from __future__ import annotations
 
-import math
-
+from planner.excess import relative_excess_sum
 from planner.verify.verifier import VerifyReport
-
-TINY_LIMIT = 1e-9  # a limit this close to 0 (a join rate, a momentum drift) measures its excess in its own units
 
 
 def violation(report: VerifyReport) -> tuple[int, float]:
     """``(failed checks, sum of their excesses relative to their limits)``: fewer failed checks first, then the
-    smaller relative excess (|margin| / |limit|; the margin alone where the limit is ~0; a NaN counts as infinite);
-    ``(0, 0.0)`` if feasible."""
+    smaller relative excess (|margin| against |limit|, :func:`planner.excess.relative_excess_sum`: the margin alone
+    where the limit is ~0; a NaN counts as infinite); ``(0, 0.0)`` if feasible."""
     failed = [c for c in report.checks.values() if not c.passed]
-    excess = sum(abs(c.margin) / abs(c.limit) if abs(c.limit) > TINY_LIMIT else abs(c.margin) for c in failed)
-    return len(failed), excess if math.isfinite(excess) else math.inf
+    return len(failed), relative_excess_sum([abs(c.margin) for c in failed], [c.limit for c in failed])
 
 
 def violates_less(candidate: VerifyReport, current: VerifyReport) -> bool:

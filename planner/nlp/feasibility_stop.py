@@ -27,18 +27,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.deadline import NO_DEADLINE, Deadline
+from planner.excess import relative_excess_sum
 
 Array = NDArray[np.float64]
 
-ZERO_BOUND = 1e-9  # a bound this small is zero: the excess beyond it counts in the row's own unit
 
 
-def row_scales(lbg: Array, ubg: Array) -> Array:
-    """Per constraint row, the magnitude of its largest finite bound (1 where every bound is ~0 or infinite): the
-    unit its excess is counted in."""
+def row_limits(lbg: Array, ubg: Array) -> Array:
+    """Per constraint row, the magnitude of its largest finite bound (0 where it has none): the limit its excess is
+    counted against (:mod:`planner.excess`)."""
     bounds = np.where(np.isfinite(lbg), np.abs(lbg), 0.0), np.where(np.isfinite(ubg), np.abs(ubg), 0.0)
-    scale = np.maximum(*bounds)
-    return np.where(scale > ZERO_BOUND, scale, 1.0)
+    return np.maximum(*bounds)
 
 
 class FeasibilityStop(ca.Callback):
@@ -61,7 +60,7 @@ class FeasibilityStop(ca.Callback):
         self.deadline = NO_DEADLINE
         self.out_of_time = False
         self._calls = 0
-        self._row_scale = np.ones(n_g)
+        self._row_limit = np.zeros(n_g)
         self._least_violation = np.inf
         self._least_violating: tuple[Array, float] | None = None  # (x, f)
         self.construct(name, {})
@@ -81,14 +80,14 @@ class FeasibilityStop(ca.Callback):
         self.budget_exhausted = False
         self.out_of_time = False
         self._calls = 0
-        self._row_scale = row_scales(self.lbg, self.ubg)
+        self._row_limit = row_limits(self.lbg, self.ubg)
         self._least_violation, self._least_violating = np.inf, None
 
     def violation(self, g: Array) -> float:
-        """Σ over the rows of ``g`` of its excess beyond the armed bounds, each relative to its bound's magnitude
-        (absolute where the bound is ~0), so that rad, m and N·m add up as "limits over"."""
-        excess = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0)
-        return float(np.sum(excess / self._row_scale)) if not np.isnan(g).any() else np.inf
+        """Σ over the rows of ``g`` of its excess beyond the armed bounds, each relative to its bound
+        (:func:`planner.excess.relative_excess_sum`; a NaN row makes it infinite)."""
+        excess = np.where(np.isnan(g), np.inf, np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0))
+        return relative_excess_sum(excess, self._row_limit)
 
     def least_violating(self, x: Array, f: float, g: Array) -> tuple[Array, float]:
         """``(x, f)`` of the solve's least violating iterate, the given final iterate ``(x, f, g)`` included."""

@@ -11,7 +11,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from planner.nlp.feasibility_stop import FeasibilityStop, row_scales
+from planner.nlp.feasibility_stop import FeasibilityStop, row_limits
 
 INF = np.inf
 
@@ -31,7 +31,7 @@ def _feed(stop: FeasibilityStop, x, g, f=0.0) -> None:
 def test_each_row_counts_in_units_of_its_own_bound():
     # a torque box ±10 N·m, a clearance ≥ 0.02 m, an end rate = 0 rad/s, a free row
     lbg, ubg = [-10.0, 0.02, 0.0, -INF], [10.0, INF, 0.0, INF]
-    np.testing.assert_array_equal(row_scales(np.array(lbg), np.array(ubg)), [10.0, 0.02, 1.0, 1.0])
+    np.testing.assert_array_equal(row_limits(np.array(lbg), np.array(ubg)), [10.0, 0.02, 0.0, 0.0])
     stop = _stop(lbg, ubg)
     assert stop.violation(np.array([10.0, 0.02, 0.0, 1e9])) == 0.0  # on every bound: nothing over
     assert stop.violation(np.array([-3.0, 5.0, 0.0, -1e9])) == 0.0  # inside
