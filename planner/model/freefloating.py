@@ -22,6 +22,7 @@ Base pose: ``ṗ_world_base = R v_b``, ``q̇_world_base = ½ q ⊗ [0, ω_b]`` (
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -54,6 +55,13 @@ def quat_to_rotation_sym(quat: Symbolic) -> Symbolic:
         ca.horzcat(2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
         ca.horzcat(2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
     )
+
+
+@functools.cache
+def quat_rotation_function() -> ca.Function:
+    """:func:`quat_to_rotation_sym` as one SX Function ``quat (4,) -> R (3, 3)``: one node in an MX graph."""
+    quat = ca.SX.sym("quat_wxyz", 4)
+    return ca.Function("quat_rotation", [quat], [quat_to_rotation_sym(quat)], ["quat_wxyz"], ["R"])
 
 
 def _quat_times_pure(quat: Symbolic, omega: Symbolic) -> Symbolic:
@@ -157,6 +165,8 @@ class FreeFloatingModel:
     * ``base_twist(q, qd, h_base) -> twist_base (6)``
     * ``gen_jacobian(q) -> (J_star 6×n, D 6×6, R_ee, p_ee)`` base frame
     * ``rk4_step(x, q0, qd0, qm, qdm, q1, qd1, h_world, dt) -> x_next`` (quaternion renormalised)
+    * ``zero_momentum_twist(q, qd) -> twist_base (6)``: the base twist at zero momentum, which depends on the joints
+      alone; with :func:`pose_rk4_step` it is :meth:`rk4_step` at ``h_world = 0`` split in two
     Call them with numpy for numeric use or with SX/MX inside an NLP. ``compile_rk4``: ``rk4_step`` compiled to
     C (:mod:`planner.nlp.compiled`), for a model whose RK4 steps an NLP differentiates (the chaser's, in a Planner);
     off for the models made per grasp, which would each compile a library.
@@ -171,6 +181,7 @@ class FreeFloatingModel:
     base_twist: ca.Function = field(init=False)
     gen_jacobian: ca.Function = field(init=False)
     rk4_step: ca.Function = field(init=False)
+    zero_momentum_twist: ca.Function = field(init=False)
 
     def __post_init__(self) -> None:
         n = self.robot.n_joints
@@ -191,8 +202,11 @@ class FreeFloatingModel:
         self.gen_jacobian = ca.Function("gen_jacobian", [q], [J_star, D, mm.R_ee, mm.p_ee],
                                         ["q"], ["J_star", "D", "R_ee", "p_ee"])
         self.rk4_step = rk4_step_function(self.robot)
+        self.zero_momentum_twist = ca.Function("zero_momentum_twist", [q, qd], [base_twist_sym(mm, qd, ca.DM.zeros(6))],
+                                               ["q", "qd"], ["twist_base"])
         if self.compile_rk4:
             self.rk4_step = compiled(self.rk4_step)
+            self.zero_momentum_twist = compiled(self.zero_momentum_twist)
 
     def integrate_base(
         self,
@@ -263,3 +277,29 @@ def rk4_step_function(robot: RobotModel, parameters: ca.SX | None = None) -> ca.
     names = ["x", "q0", "qd0", "qm", "qdm", "q1", "qd1", "h_world", "dt"] + ["parameters"] * len(extra)
     return ca.Function("rk4_base_step", [x, q0, qd0, qm, qdm, q1, qd1, h, dt, *extra],
                        [ca.vertcat(x_next[:3], quat)], names, ["x_next"])
+
+
+@functools.cache
+def pose_rk4_step() -> ca.Function:
+    """``(x, twist0, twist_mid, twist1, dt) -> x_next``: one RK4 step of the base pose from its base-frame twists
+    at the step's start, midpoint and end (quaternion renormalised).
+
+    At zero momentum the twist depends on the joints alone (:attr:`FreeFloatingModel.zero_momentum_twist`), so
+    both midpoint stages share one, and a step's end twist is the next step's start: an NLP evaluates and
+    differentiates the momentum map twice per step instead of four times. Same operations as :func:`rk4_step_function`.
+    """
+    x, dt = ca.SX.sym("x", 7), ca.SX.sym("dt")
+    t0, tm, t1 = (ca.SX.sym(nm, 6) for nm in ("twist0", "twist_mid", "twist1"))
+
+    def rate(xk: ca.SX, twist: ca.SX) -> ca.SX:
+        return ca.vertcat(ca.mtimes(quat_to_rotation_sym(xk[3:7]), twist[:3]),
+                          0.5 * _quat_times_pure(xk[3:7], twist[3:]))
+
+    k1 = rate(x, t0)
+    k2 = rate(x + 0.5 * dt * k1, tm)
+    k3 = rate(x + 0.5 * dt * k2, tm)
+    k4 = rate(x + dt * k3, t1)
+    x_next = x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    quat = x_next[3:7] / ca.sqrt(ca.sumsqr(x_next[3:7]))
+    return ca.Function("pose_rk4_step", [x, t0, tm, t1, dt], [ca.vertcat(x_next[:3], quat)],
+                       ["x", "twist0", "twist_mid", "twist1", "dt"], ["x_next"])

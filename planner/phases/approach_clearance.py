@@ -48,7 +48,7 @@ class ApproachClearance:
         sc = problem.scenario
         poses = ScenePoses(sc.robot, fk_function(sc.robot), ca.DM(sc.target.p_world_com))
         x, q, R = ca.SX.sym("x", 7), ca.SX.sym("q", sc.robot.n_joints), ca.SX.sym("R", 3, 3)
-        self._poses = ca.Function("approach_body_poses", [x, q, R], [poses(x, q, R)[0]])
+        self._poses = ca.Function("approach_body_poses", [x, q, R], [poses.function(x, q, R)[0]])
         self.n_pairs = len(problem.scene.pairs)
         rows = problem.constraints.slice("collision")
         self.n_points = (rows.stop - rows.start) // self.n_pairs

@@ -9,6 +9,7 @@ Bounds are set where the families are added to the NLP (:mod:`planner.phases.app
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -60,20 +61,33 @@ def _ee_to_body(robot: RobotModel, body: str) -> Array:
 
 @dataclass(frozen=True)
 class ScenePoses:
-    """World poses of the chaser's bodies and the target, as the distance callbacks take them."""
+    """World poses of the chaser's bodies and the target, as the distance callbacks take them.
+
+    One SX Function of a point's base state, joints and target attitude: the NLP's Jacobian pushes every decision
+    direction through each of its operations, which costs far less in one SX call than as separate MX nodes.
+    """
 
     robot: RobotModel
     fk: ca.Function
     com: ca.DM  # (3,) target COM, world [m] (it does not move: zero momentum of the free target's COM)
 
+    @cached_property
+    def function(self) -> ca.Function:
+        """``(x_base (7,), q (n,), R_target (3, 3)) -> (body poses, R_world_ee (3, 3), p_world_ee (3,) [m])``."""
+        x, q, R = ca.SX.sym("x_base", 7), ca.SX.sym("q", self.robot.n_joints), ca.SX.sym("R_target", 3, 3)
+        R_wb = quat_to_rotation_sym(x[3:7])
+        out = self.fk(q)
+        blocks = [pose_vector(ca.mtimes(R_wb, out[2 * i]), x[:3] + ca.mtimes(R_wb, out[2 * i + 1]))
+                  for i in range(len(self.robot.body_names))]
+        blocks.append(pose_vector(R, self.com))
+        return ca.Function("scene_poses", [x, q, R],
+                           [ca.vertcat(*blocks), ca.mtimes(R_wb, out[-2]), x[:3] + ca.mtimes(R_wb, out[-1])],
+                           ["x_base", "q", "R_target"], ["body_poses", "R_world_ee", "p_world_ee"])
+
     def __call__(self, x_base: ca.MX, q: ca.MX, R_target: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
         """``(stacked body poses, R_world_ee (3, 3), p_world_ee (3,) [m])`` at base state ``x_base`` (7,)."""
-        R_wb = quat_to_rotation_sym(x_base[3:7])
-        out = self.fk(q)
-        blocks = [pose_vector(ca.mtimes(R_wb, out[2 * i]), x_base[:3] + ca.mtimes(R_wb, out[2 * i + 1]))
-                  for i in range(len(self.robot.body_names))]
-        blocks.append(pose_vector(R_target, self.com))
-        return ca.vertcat(*blocks), ca.mtimes(R_wb, out[-2]), x_base[:3] + ca.mtimes(R_wb, out[-1])
+        poses, R_ee, p_ee = self.function(x_base, q, R_target)
+        return poses, R_ee, p_ee
 
 
 def pregrasp_error(scenario: Scenario, R_ee: ca.MX, p_ee: ca.MX, R_target: ca.MX,

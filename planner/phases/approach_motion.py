@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 
 from planner.config.scenario import Scenario
-from planner.model.freefloating import FreeFloatingModel, quat_to_rotation_sym
+from planner.model.freefloating import FreeFloatingModel, pose_rk4_step, quat_rotation_function
 from planner.model.target_symbolic import prediction_function
 from planner.nlp.bspline import UniformCubicBSpline
 from planner.nlp.phase_spline import approach_vertices
@@ -58,29 +58,29 @@ def chaser_path(scenario: Scenario, ff: FreeFloatingModel, spline: UniformCubicB
     Qdn = spline.evaluate(V, nodes, 1)
     Qm = spline.evaluate(V, mids)
     Qdm = spline.evaluate(V, mids, 1)
-    x = ca.vertcat(base_offset[0], 0.0, base_offset[1], 1.0, 0.0, 0.0, 0.0)
-    h0 = ca.DM.zeros(6)
-    dt = tf / m_steps
-    xs = [x]
-    for i in range(m_steps):
-        x = ff.rk4_step(x, Qn[i, :].T, Qdn[i, :].T, Qm[i, :].T, Qdm[i, :].T, Qn[i + 1, :].T,
-                        Qdn[i + 1, :].T, h0, dt)
-        xs.append(x)
+    x0 = ca.vertcat(base_offset[0], 0.0, base_offset[1], 1.0, 0.0, 0.0, 0.0)
+    # the twists at every node and midpoint in two calls, the steps in one: a few nodes for the NLP's Jacobian
+    twist = ff.zero_momentum_twist
+    at_nodes = twist.map(m_steps + 1)(Qn.T, Qdn.T)
+    at_mids = twist.map(m_steps)(Qm.T, Qdm.T)
+    steps = pose_rk4_step().mapaccum("approach_base_steps", m_steps)
+    after = steps(x0, at_nodes[:, :-1], at_mids, at_nodes[:, 1:], tf / m_steps)
+    xs = [x0, *ca.horzsplit(after)]
     q_end = Qn[-1, :].T
-    return ChaserPath(Qn, Qdn, xs, _tracking_drift(ff, x, q_end, Q_tracking, tracking_times_s), q_end)
+    return ChaserPath(Qn, Qdn, xs, _tracking_drift(ff, xs[-1], q_end, Q_tracking, tracking_times_s), q_end)
 
 
 def _tracking_drift(ff: FreeFloatingModel, x: ca.MX, q_end: ca.MX, Q_tracking: list[ca.MX],
                     tracking_times_s: list[float]) -> list[ca.MX]:
     """Base states at the tracking nodes, the joints moving linearly from node to node."""
-    h0 = ca.DM.zeros(6)
+    step, twist = pose_rk4_step(), ff.zero_momentum_twist
     x_tr, q_prev, t_prev = [], q_end, 0.0
     for j, t_node in enumerate(tracking_times_s):
         h = (t_node - t_prev) / TRACKING_RK4_STEPS
         qd_seg = (Q_tracking[j] - q_prev) / (t_node - t_prev)
         for s in range(TRACKING_RK4_STEPS):
             qa = q_prev + qd_seg * (s * h)
-            x = ff.rk4_step(x, qa, qd_seg, qa + qd_seg * (h / 2), qd_seg, qa + qd_seg * h, qd_seg, h0, h)
+            x = step(x, twist(qa, qd_seg), twist(qa + qd_seg * (h / 2), qd_seg), twist(qa + qd_seg * h, qd_seg), h)
         x_tr.append(x)
         q_prev, t_prev = Q_tracking[j], t_node
     return x_tr
@@ -96,14 +96,15 @@ def target_path(scenario: Scenario, attitude_wxyz: ca.MX, omega_body: ca.MX, sta
                                         max(4, int(np.ceil(max_delay * TARGET_STEPS_PER_S))))
     predict_step = prediction_function(target.inertia_body_kg_m2, max(2, int(np.ceil(tf / k))))
     att, om = predict_delay(attitude_wxyz, omega_body, start_delay)
+    rotation = quat_rotation_function()
     R_via = []
     for _ in range(k):
         att, om = predict_step(att, om, tf / k)
-        R_via.append(quat_to_rotation_sym(att))
+        R_via.append(rotation(att))
     att_f, om_f = att, om
     R_tracking, t_prev = [], 0.0
     for t_node in tracking_times_s:
         att, om = predict_step(att, om, t_node - t_prev)
-        R_tracking.append(quat_to_rotation_sym(att))
+        R_tracking.append(rotation(att))
         t_prev = t_node
     return TargetPath(R_via, R_tracking, att_f, om_f, om, predict_step)

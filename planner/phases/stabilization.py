@@ -27,12 +27,11 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.collision.callback import SceneDistanceCallback, pose_vector
+from planner.collision.callback import SceneDistanceCallback
 from planner.collision.layout import TARGET_BODY
 from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import Scenario
-from planner.model.compound import GEOMETRY_SIZE, GraspGeometry, grasp_geometry
-from planner.model.freefloating import quat_to_rotation_sym
+from planner.model.compound import GEOMETRY_SIZE, grasp_geometry
 from planner.model.robot import RobotModel
 from planner.nlp import constraint_backoff
 from planner.nlp.bspline import UniformCubicBSpline
@@ -211,9 +210,8 @@ class StabilizationProblem:
         [s into the phase] (the NLP's via points, or a denser set to check between them; ``with_poses`` False leaves
         the bodies' poses out)."""
         sc, fn, lay = self.scenario, self.functions, self.parameter_layout
-        robot, T = sc.robot, sc.phases.stabilization_s
+        T = sc.phases.stabilization_s
         x, h, geo_vec = par[lay.slice("x_base")], par[lay.slice("h_world")], par[lay.slice("geometry")]
-        geo = GraspGeometry.unpack(geo_vec)
         V = stabilization_vertices(self.spline, par[lay.slice("q")], par[lay.slice("qd")], par[lay.slice("qdd")], P)
         # RK4 nodes: a uniform grid refined so that every via point is a node (steps may differ)
         nodes = np.unique(np.round(np.concatenate([np.linspace(0.0, T, sc.stabilization.rk4_steps + 1),
@@ -235,12 +233,7 @@ class StabilizationProblem:
             omegas.append(w_b)
             if not with_poses:
                 continue
-            R_wb = quat_to_rotation_sym(xs[i][3:7])
-            out = fn.fk(Qn[i, :].T)
-            blocks = [pose_vector(ca.mtimes(R_wb, out[2 * b]), xs[i][:3] + ca.mtimes(R_wb, out[2 * b + 1]))
-                      for b in range(len(robot.body_names))]
-            blocks.append(pose_vector(ca.mtimes(R_ee, geo.R_ee_target), p_ee + ca.mtimes(R_ee, geo.p_ee_target)))
-            poses.append(ca.vertcat(*blocks))
+            poses.append(fn.poses(xs[i], Qn[i, :].T, R_ee, p_ee, geo_vec))
         return _AtViaPoints(ca.vertcat(*[Qn[i, :].T for i in via_idx]), ca.vertcat(*[Qdn[i, :].T for i in via_idx]),
                             ca.vertcat(*torques), ca.vertcat(*forces), omegas, poses)
 
