@@ -119,8 +119,10 @@ def test_primitives_sit_next_to_pinocchio(bench):
     p = bench["primitives"]
     for key in ("forward_kinematics_casadi_us", "forward_kinematics_pinocchio_us", "momentum_map_and_jstar_casadi_us",
                 "centroidal_map_pinocchio_us", "collision_sweep_us", "collision_sweep_23_points_us",
-                "collision_verify_1000_samples_s", "verify_plan_s"):
+                "collision_verify_1000_samples_s", "verify_plan_s", "approach_jacobian_ms",
+                "stabilization_jacobian_ms"):
         _assert_timing(p[key], key)
+    assert p["nlp_jacobian_shapes"]["approach"][0] > 1000  # every constraint row of the NLP, not a block
     assert p["collision_pairs"] == 37
     assert p["collision_engines_max_difference_m"] <= 1e-6  # the NLPs' and verify's engines agree
     assert p["verify_plan"]["plan_samples"] > 1000  # a whole plan, not a fragment

@@ -1,8 +1,10 @@
 """``primitives``: µs per call of the kinematic, momentum and collision building blocks, next to
-pinocchio, and the time of one dense verification of a whole plan."""
+pinocchio, the time of one dense verification of a whole plan and of one evaluation of each NLP's
+constraint Jacobian."""
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -96,6 +98,16 @@ def collision_sweep(settings: Settings) -> dict[str, Any]:
                                "signed path, replaced, took 161 us for the 29 pairs it had"}
 
 
+def _golden_point(tq: Any, point: int) -> tuple[Any, Any, list[int]]:
+    """``(state, parameters, corners)`` of a grid point of the golden table (interpolation there returns the point's
+    record), its start delay taken within the first spin period."""
+    state = tq.grid.state(point)
+    found = tq.interpolate(state)
+    rate = float(np.linalg.norm(state.omega_body_rad_s))
+    given = found.parameters.shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.max_start_delay_s)
+    return state, given, found.corners
+
+
 def verify_one_plan(settings: Settings) -> dict[str, Any]:
     """``planner.verify.verifier.verify`` of a whole plan: the golden table's parameters re-simulated at a grid
     node (interpolation there returns that node's record), timed apart from the simulation."""
@@ -103,11 +115,7 @@ def verify_one_plan(settings: Settings) -> dict[str, Any]:
 
     tq = table_query(GOLDEN_TABLE)
     point = tq.grid.seed_point()
-    state = tq.grid.state(point)
-    found = tq.interpolate(state)
-    corners = found.corners
-    rate = float(np.linalg.norm(state.omega_body_rad_s))
-    given = found.parameters.shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.max_start_delay_s)
+    state, given, corners = _golden_point(tq, point)
     plan, simulate_s = timed(lambda: tq.planner.simulate(state, given))
     runs = []
     for _ in range(settings.verify_runs):
@@ -120,6 +128,45 @@ def verify_one_plan(settings: Settings) -> dict[str, Any]:
                             "feasible": bool(report.feasible)}}
 
 
+JACOBIAN_CALLS = 20  # evaluations per timed batch of an NLP's constraint Jacobian (tens of ms each)
+JACOBIAN_CALLS_TRIMMED = 3
+
+
+def _jacobian_ms(solver: Any, x: np.ndarray, p: np.ndarray, settings: Settings) -> dict[str, float | int]:
+    """ms per evaluation of ``solver``'s constraint Jacobian (with the constraints, as IPOPT asks for them) near
+    ``x``: each call at another point, so no distance sweep is reused."""
+    jac = solver.get_function("nlp_jac_g")
+    jac(x, p)
+    calls = JACOBIAN_CALLS_TRIMMED if settings.trim else JACOBIAN_CALLS
+    batches = []
+    for r in range(settings.repeats):
+        t0 = time.perf_counter()
+        for i in range(calls):
+            jac(x + 1e-9 * (r * calls + i + 1), p)
+        batches.append(1e3 * (time.perf_counter() - t0) / calls)
+    return stats(batches)
+
+
+def nlp_jacobians(settings: Settings) -> dict[str, Any]:
+    """One evaluation of each NLP's constraint Jacobian, at the golden table's plan of its seed point (scenario II):
+    what an IPOPT iteration pays besides its linear algebra."""
+    from planner.phases.approach_solve import decision_vector
+
+    tq = table_query(GOLDEN_TABLE)
+    state, params, _ = _golden_point(tq, tq.grid.seed_point())
+    planner, app = tq.planner, tq.planner.approach
+    plan = planner.simulate(state, params)
+    x_app = np.concatenate([decision_vector(params.approach), np.zeros(app.n_extra)])
+    p_app = app.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
+                                       "omega_body_rad_s": state.omega_body_rad_s})
+    stab = planner.stabilization_problem
+    x_stab = np.concatenate([params.stabilization_params, np.zeros(stab.n_extra)])
+    return {"approach_jacobian_ms": _jacobian_ms(app.solver, x_app, p_app, settings),
+            "stabilization_jacobian_ms": _jacobian_ms(stab.solver, x_stab, stab.parameters(plan.grasp), settings),
+            "nlp_jacobian_shapes": {"approach": [len(app.lbg), int(x_app.size)],
+                                    "stabilization": [len(stab.lbg), int(x_stab.size)]}}
+
+
 def primitives(settings: Settings) -> dict[str, Any]:
     """The whole section."""
-    return {**kinematics(settings), **collision_sweep(settings), **verify_one_plan(settings)}
+    return {**kinematics(settings), **collision_sweep(settings), **verify_one_plan(settings), **nlp_jacobians(settings)}

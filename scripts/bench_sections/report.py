@@ -31,6 +31,11 @@ def _primitives(p: dict[str, Any]) -> tuple[str, list[Row]]:
             ("collision sweep, NLP engine, 23 via points", timing(p["collision_sweep_23_points_us"], "µs")),
             ("collision sweep, verify's engine, 1000 samples", timing(p["collision_verify_1000_samples_s"])),
             (f"verify one plan ({p['verify_plan']['plan_samples']} samples)", timing(p["verify_plan_s"]))]
+    shapes = p.get("nlp_jacobian_shapes")
+    if shapes:  # a bench.json written before the NLP Jacobians were measured has no such rows
+        for nlp in ("approach", "stabilization"):
+            rows.append((f"{nlp} NLP Jacobian {shapes[nlp][0]} × {shapes[nlp][1]}",
+                         timing(p[f"{nlp}_jacobian_ms"], "ms")))
     return "primitives", rows
 
 
