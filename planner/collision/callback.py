@@ -21,6 +21,7 @@ import casadi as ca
 import numpy as np
 
 from planner.collision.scene_distances import CollisionScene, PairSweep
+from planner.model.freefloating import quat_to_rotation_sym
 
 POSE_SIZE = 12  # vec(R) column-major (9) + p (3)
 # Sweeps kept per callback, keyed by the exact input: IPOPT evaluates the constraints at a trial point and,
@@ -178,3 +179,13 @@ def frame_poses(blocks: np.ndarray, frames: Sequence[str]) -> dict[str, np.ndarr
 def pose_vector(R: ca.SX | ca.MX | ca.DM, p: ca.SX | ca.MX | ca.DM) -> ca.SX | ca.MX | ca.DM:
     """``[vec(R) column-major; p]`` — the per-frame block of the callback input."""
     return ca.vertcat(ca.reshape(R, 9, 1), p)
+
+
+def chaser_pose_blocks(fk_out: Sequence[ca.SX], n_bodies: int, x_base: ca.SX) -> tuple[list[ca.SX], ca.SX]:
+    """The chaser's ``n_bodies`` body frames in the world as callback blocks (:func:`pose_vector` each), from
+    :func:`planner.model.robot.fk_function`'s base-frame outputs ``fk_out`` and the base state ``x_base``
+    ``[p_world_base (3) [m], quat_world_base (4)]``; ``(blocks, R_world_base)``."""
+    R_wb = quat_to_rotation_sym(x_base[3:7])
+    blocks = [pose_vector(ca.mtimes(R_wb, fk_out[2 * i]), x_base[:3] + ca.mtimes(R_wb, fk_out[2 * i + 1]))
+              for i in range(n_bodies)]
+    return blocks, R_wb

@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.collision.callback import SceneDistanceCallback, pose_vector
+from planner.collision.callback import SceneDistanceCallback, chaser_pose_blocks, pose_vector
 from planner.collision.contact_rule import TRACKING, closed_backoff_m, required_clearance_m
 from planner.collision.layout import TARGET_BODY, SceneLayout, scene_layout
 from planner.collision.nlp_scene import build_collision_scene
@@ -75,10 +75,8 @@ class ScenePoses:
     def function(self) -> ca.Function:
         """``(x_base (7,), q (n,), R_target (3, 3)) -> (body poses, R_world_ee (3, 3), p_world_ee (3,) [m])``."""
         x, q, R = ca.SX.sym("x_base", 7), ca.SX.sym("q", self.robot.n_joints), ca.SX.sym("R_target", 3, 3)
-        R_wb = quat_to_rotation_sym(x[3:7])
         out = self.fk(q)
-        blocks = [pose_vector(ca.mtimes(R_wb, out[2 * i]), x[:3] + ca.mtimes(R_wb, out[2 * i + 1]))
-                  for i in range(len(self.robot.body_names))]
+        blocks, R_wb = chaser_pose_blocks(out, len(self.robot.body_names), x)
         blocks.append(pose_vector(R, self.com))
         return ca.Function("scene_poses", [x, q, R],
                            [ca.vertcat(*blocks), ca.mtimes(R_wb, out[-2]), x[:3] + ca.mtimes(R_wb, out[-1])],

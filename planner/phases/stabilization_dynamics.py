@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.collision.callback import pose_vector
+from planner.collision.callback import chaser_pose_blocks, pose_vector
 from planner.model.compound import GEOMETRY_SIZE, GraspGeometry
 from planner.model.freefloating import (
     FreeFloatingModel,
@@ -106,16 +106,14 @@ class InnerFunctions:
 
     rk4_step: ca.Function  # rk4_step_function of the compound, geometry as last input (compiled)
     wrench: ca.Function  # wrench_function (compiled)
-    fk: ca.Function  # fk_function
     poses: ca.Function  # compound_poses_function
 
     @staticmethod
     def of(robot: RobotModel) -> InnerFunctions:
         """Build them, the RK4 step and the wrench compiled to C (:mod:`planner.nlp.compiled`)."""
-        fk = fk_function(robot)
         return InnerFunctions(compound_rk4_step(robot),
                               compiled(wrench_function(robot), {"jac_penalty": JACOBIAN_FIRST_PENALTY}),
-                              fk, compound_poses_function(robot, fk))
+                              compound_poses_function(robot, fk_function(robot)))
 
 
 def compound_poses_function(robot: RobotModel, fk: ca.Function) -> ca.Function:
@@ -128,10 +126,7 @@ def compound_poses_function(robot: RobotModel, fk: ca.Function) -> ca.Function:
     x, q, p_ee = ca.SX.sym("x_base", 7), ca.SX.sym("q", robot.n_joints), ca.SX.sym("p_ee", 3)
     R_ee, geo_vec = ca.SX.sym("R_ee", 3, 3), ca.SX.sym("geometry", GEOMETRY_SIZE)
     geo = GraspGeometry.unpack(geo_vec)
-    R_wb = quat_to_rotation_sym(x[3:7])
-    out = fk(q)
-    blocks = [pose_vector(ca.mtimes(R_wb, out[2 * b]), x[:3] + ca.mtimes(R_wb, out[2 * b + 1]))
-              for b in range(len(robot.body_names))]
+    blocks, _ = chaser_pose_blocks(fk(q), len(robot.body_names), x)
     blocks.append(pose_vector(ca.mtimes(R_ee, geo.R_ee_target), p_ee + ca.mtimes(R_ee, geo.p_ee_target)))
     return ca.Function("compound_poses", [x, q, R_ee, p_ee, geo_vec], [ca.vertcat(*blocks)],
                        ["x_base", "q", "R_ee", "p_ee", "geometry"], ["body_poses"])

@@ -5,6 +5,7 @@ constraint Jacobian."""
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -98,31 +99,43 @@ def collision_sweep(settings: Settings) -> dict[str, Any]:
                                "signed path, replaced, took 161 us for the 29 pairs it had"}
 
 
-def _golden_point(tq: Any, point: int) -> tuple[Any, Any, list[int]]:
-    """``(state, parameters, corners)`` of a grid point of the golden table (interpolation there returns the point's
-    record), its start delay taken within the first spin period."""
+@dataclass(frozen=True)
+class GoldenPlan:
+    """The golden table's plan of its seed point, re-simulated once for the section: verify and the NLP Jacobians
+    both start from it."""
+
+    tq: Any  # the opened golden table (lut.query.table_query.TableQuery)
+    point: int
+    corners: list[int]
+    state: Any  # TargetState
+    parameters: Any  # PlanParameters, the start delay within the first spin period
+    plan: Any  # GraspPlan
+    simulate_s: float
+
+
+def golden_plan() -> GoldenPlan:
+    """Re-simulate the golden table's seed point (interpolation there returns that node's record)."""
+    tq = table_query(GOLDEN_TABLE)
+    point = tq.grid.seed_point()
     state = tq.grid.state(point)
     found = tq.interpolate(state)
     rate = float(np.linalg.norm(state.omega_body_rad_s))
     given = found.parameters.shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.max_start_delay_s)
-    return state, given, found.corners
+    plan, simulate_s = timed(lambda: tq.planner.simulate(state, given))
+    return GoldenPlan(tq, int(point), found.corners, state, given, plan, simulate_s)
 
 
-def verify_one_plan(settings: Settings) -> dict[str, Any]:
-    """``planner.verify.verifier.verify`` of a whole plan: the golden table's parameters re-simulated at a grid
-    node (interpolation there returns that node's record), timed apart from the simulation."""
+def verify_one_plan(settings: Settings, golden: GoldenPlan) -> dict[str, Any]:
+    """``planner.verify.verifier.verify`` of a whole plan, the golden table's, timed apart from its simulation."""
     from planner.verify.verifier import DEFAULT_STEP_S, verify
 
-    tq = table_query(GOLDEN_TABLE)
-    point = tq.grid.seed_point()
-    state, given, corners = _golden_point(tq, point)
-    plan, simulate_s = timed(lambda: tq.planner.simulate(state, given))
+    plan = golden.plan
     runs = []
     for _ in range(settings.verify_runs):
         report, seconds = timed(lambda: verify(plan))
         runs.append(seconds)
-    return {"verify_plan_s": stats(runs), "verify_plan_simulate_s": simulate_s,
-            "verify_plan": {"table": relative(GOLDEN_TABLE), "grid_point": int(point), "corners": corners,
+    return {"verify_plan_s": stats(runs), "verify_plan_simulate_s": golden.simulate_s,
+            "verify_plan": {"table": relative(GOLDEN_TABLE), "grid_point": golden.point, "corners": golden.corners,
                             "plan_samples": int(len(plan.t)), "verify_step_s": DEFAULT_STEP_S,
                             "plan_duration_s": float(plan.t[-1] - plan.t[0]),
                             "feasible": bool(report.feasible)}}
@@ -147,15 +160,13 @@ def _jacobian_ms(solver: Any, x: np.ndarray, p: np.ndarray, settings: Settings) 
     return stats(batches)
 
 
-def nlp_jacobians(settings: Settings) -> dict[str, Any]:
+def nlp_jacobians(settings: Settings, golden: GoldenPlan) -> dict[str, Any]:
     """One evaluation of each NLP's constraint Jacobian, at the golden table's plan of its seed point (scenario II):
     what an IPOPT iteration pays besides its linear algebra."""
     from planner.phases.approach_solve import decision_vector
 
-    tq = table_query(GOLDEN_TABLE)
-    state, params, _ = _golden_point(tq, tq.grid.seed_point())
-    planner, app = tq.planner, tq.planner.approach
-    plan = planner.simulate(state, params)
+    state, params, plan = golden.state, golden.parameters, golden.plan
+    planner, app = golden.tq.planner, golden.tq.planner.approach
     x_app = np.concatenate([decision_vector(params.approach), np.zeros(app.n_extra)])
     p_app = app.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
@@ -169,4 +180,6 @@ def nlp_jacobians(settings: Settings) -> dict[str, Any]:
 
 def primitives(settings: Settings) -> dict[str, Any]:
     """The whole section."""
-    return {**kinematics(settings), **collision_sweep(settings), **verify_one_plan(settings), **nlp_jacobians(settings)}
+    golden = golden_plan()
+    return {**kinematics(settings), **collision_sweep(settings), **verify_one_plan(settings, golden),
+            **nlp_jacobians(settings, golden)}
