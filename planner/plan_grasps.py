@@ -31,7 +31,7 @@ from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
-from planner.phases.approach_solve import COLD_START_ITERATIONS, solve_approach, solve_approach_from_base
+from planner.phases.approach_solve import COLD_START_ITERATIONS, TriedGrasp, solve_approach, solve_approach_from_base
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
@@ -249,28 +249,37 @@ class GraspSearch:
     def _scanned_guess_remains(self, candidate: GraspCandidate) -> bool:
         """True when a cold plan's approach has a next scanned guess after ``candidate``'s."""
         app = candidate.app
-        return self.warm is None and app.success and 0 <= app.start_guess < GRASP_GUESSES - 1
+        return self.warm is None and app.success and 0 <= app.start_guess < self._scanned_guesses() - 1
 
     def _grasps(self, first: GraspCandidate) -> Iterator[GraspCandidate]:
-        """``first``, then the grasps the approach reaches from its next scanned guesses while one remains, then
-        those it reaches with the chaser waiting elsewhere (:func:`other_base_offsets`)."""
-        candidate, tried = first, []
+        """``first``, then the grasps the approach reaches from its next scanned guesses while one remains (an approach
+        that fails from one guess goes on from the guess after it), then those it reaches with the chaser waiting
+        elsewhere (:func:`other_base_offsets`)."""
+        tried = [TriedGrasp(first.app.start_delay_s, first.tracking.free_axis_angle_rad)]
         self._tried_offsets.append(first.app.base_offset_m)
-        yield candidate
-        while self._scanned_guess_remains(candidate) and not self.deadline.passed:
-            tried.append(candidate.app.start_delay_s)
-            nxt = self._solve_approach(None, max_starts=GRASP_GUESSES, skip_guesses=candidate.app.start_guess + 1,
+        yield first
+        skip = first.app.start_guess + 1
+        while self.warm is None and first.app.success and 0 < skip < self._scanned_guesses() \
+                and not self.deadline.passed:
+            nxt = self._solve_approach(None, max_starts=GRASP_GUESSES, skip_guesses=skip,
                                        max_iterations=approach_retry_budget(first.app.iterations),
-                                       meeting_time_box_s=MEETING_TIME_BOX_S, avoid_start_delays_s=tuple(tried))
+                                       meeting_time_box_s=MEETING_TIME_BOX_S, avoid=tuple(tried))
             if not nxt.success:
                 self.approach_s += nxt.solve_time_s
-                self.notes.append(f"the approach from its next guesses failed ({nxt.status})")
-                break
+                self.notes.append(f"the approach from scanned guess {skip + 1} on failed ({nxt.status})")
+                skip = nxt.start_guess + 1 if nxt.start_guess >= skip else self._scanned_guesses()
+                continue
+            skip = nxt.start_guess + 1  # (a re-solve below may end on another guess: the scan goes on from here)
             candidate = self._candidate(nxt)
             self.approach_s += candidate.app.solve_time_s
             self._tried_offsets.append(candidate.app.base_offset_m)
+            tried.append(TriedGrasp(candidate.app.start_delay_s, candidate.tracking.free_axis_angle_rad))
             yield candidate
         yield from self._grasps_from_other_bases()
+
+    def _scanned_guesses(self) -> int:
+        """How many NLP starts the scan of this plan's state gave."""
+        return len(self.scan.result.guesses)
 
     def _grasps_from_other_bases(self) -> Iterator[GraspCandidate]:
         """The grasps the approach reaches with θ_b(0) within :data:`BASE_OFFSET_BOX_M` of the next base offsets, each

@@ -10,7 +10,7 @@ largest clearance, and fit Eq. 23's parameters to a smooth joint motion from θ_
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import casadi as ca
@@ -40,6 +40,11 @@ MIN_SEPARATION_S = 6.0  # alternative starts differ at least this much in meetin
 # node-to-node mean joint speed ≤ this × the limit, per tracking segment: the first segment follows the
 # quintic blend, whose peak rate is 15/8 of its mean; later ones track the grasp frame almost uniformly
 TRACKING_SPEED_MARGIN = (0.6, 0.8, 0.8)
+# a grasp free about an axis is also scanned held at these angles about it (from the configured grasp frame): the
+# angle the arm holds the handle at decides whether braking fits the wrench and joint limits, and the IK's own choice
+# follows one branch across the whole window; each angle adds one guess after the scan's own
+FREE_AXIS_ANGLES_DEG = (0.0, 90.0, 180.0, 270.0)
+ANGLE_SEPARATION_RAD = np.radians(20.0)  # guesses this far apart about the free axis reach different grasps
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,7 @@ class ApproachGuess:
     q_pregrasp: Array  # (7,) [rad]
     q_tracking: Array  # (len(TRACKING_NODES), 7) [rad]
     clearance_m: float  # smallest distance of its configurations [m]
+    free_axis_angle_rad: float | None = None  # the angle about a free grasp axis it holds the handle at [rad]
 
 
 class MeetingOutcome(Enum):
@@ -92,6 +98,8 @@ class _Candidate:
     clearance_m: float
     configs: list[Array]  # pre-grasp then tracking nodes, each [q (7,), b_x, b_z]
     start_delay_s: float
+    free_axis_angle_rad: float | None  # about a free grasp axis, from the configured grasp frame [rad]
+    ctx: _Scan  # the scan it was found in (its grasp frame)
 
 
 @dataclass(frozen=True)
@@ -106,6 +114,8 @@ class _Scan:
     S_pre: Array
     x_home: Array
     extra_starts: list[Array]
+    state: TargetState
+    held_rad: float | None = None  # the angle about the free grasp axis the grasp frame is held at [rad]
 
 
 def initial_guesses(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState,
@@ -147,30 +157,55 @@ class ScanOnDemand:
 def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int) -> ReachScan:
     sc = scenario
     robot = sc.robot
-    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
-    motion = sc.target.motion(state, sc.phases.max_start_delay_s + tf + t2 + 1.0)
     free = sc.target.grasp.free_axis
     # a few fixed, seeded extra starts: the IK has local minima (folded vs stretched arm)
     rng = np.random.default_rng(IK_SEED)
     extra_starts = [np.concatenate([rng.uniform(0.6 * robot.q_min, 0.6 * robot.q_max), sc.base_offset_guess_m])
                     for _ in range(IK_EXTRA_STARTS)]
-    ctx = _Scan(sc, motion, fk_function(robot), build_scene(sc), PoseIK.shared(sc),
+    ctx = _Scan(sc, sc.target.motion(state, _horizon_s(sc)), fk_function(robot), build_scene(sc), PoseIK.shared(sc),
                 np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)]),
-                np.concatenate([sc.q_initial, sc.base_offset_guess_m]), extra_starts)
+                np.concatenate([sc.q_initial, sc.base_offset_guess_m]), extra_starts, state)
+    times = [float(t) for t in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S)]
+    candidates, outcomes = _scan_window(ctx, times)
+    if not candidates:
+        # nothing reachable: hand the NLP the initial configuration and let it report infeasibility
+        candidates.append(_Candidate(-np.inf, -np.inf, [ctx.x_home] * (1 + len(TRACKING_NODES)), 0.0, None, ctx))
+    reached = [c.start_delay_s for c in candidates if np.isfinite(c.score)]
+    held = [] if free is None or not reached else \
+        [_scan_window(_held_at(ctx, np.radians(a)), reached)[0] for a in FREE_AXIS_ANGLES_DEG]
+    return ReachScan(_best_guesses(spline, _diverse(candidates, held, count)), sc.phases.max_start_delay_s,
+                     tuple(outcomes))
+
+
+def _horizon_s(sc: Scenario) -> float:
+    """How far the scan predicts the target [s]: the start-delay window, the approach and the tracking, and 1 s."""
+    return sc.phases.max_start_delay_s + sc.phases.approach_s + sc.phases.tracking_s + 1.0
+
+
+def _held_at(ctx: _Scan, angle_rad: float) -> _Scan:
+    """``ctx`` with its grasp frame turned by ``angle_rad`` about the free grasp axis and held there (the IK then
+    matches the whole orientation)."""
+    sc = ctx.sc
+    grasp = sc.target.grasp
+    T_body_grasp = grasp.T_body_grasp.copy()
+    T_body_grasp[:3, :3] = T_body_grasp[:3, :3] @ axis_angle_to_matrix(grasp.free_axis, angle_rad)
+    body = replace(sc.target.body(), T_body_grasp=T_body_grasp)
+    return replace(ctx, motion=TargetMotion(body, ctx.state, _horizon_s(sc)), S_pre=np.eye(3), held_rad=angle_rad)
+
+
+def _scan_window(ctx: _Scan, times_s: list[float]) -> tuple[list[_Candidate], list[MeetingOutcome]]:
+    """The scored candidates of the meeting times ``times_s`` [s] (start delays, in order) and what each gave."""
     x_prev = ctx.x_home
     candidates: list[_Candidate] = []
     outcomes: list[MeetingOutcome] = []
-    for tau in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S):
-        outcome, configs = _poses_at(ctx, float(tau), x_prev)
+    for tau in times_s:
+        outcome, configs = _poses_at(ctx, tau, x_prev)
         outcomes.append(outcome)
         if configs:
             x_prev = configs[0]  # the next time's pre-grasp starts here, even if this time's tracking failed
         if outcome is MeetingOutcome.REACHED:
-            candidates.append(_scored(ctx, float(tau), configs))
-    if not candidates:
-        # nothing reachable: hand the NLP the initial configuration and let it report infeasibility
-        candidates.append(_Candidate(-np.inf, -np.inf, [ctx.x_home] * (1 + len(TRACKING_NODES)), 0.0))
-    return ReachScan(_best_guesses(ctx, spline, candidates, count), sc.phases.max_start_delay_s, tuple(outcomes))
+            candidates.append(_scored(ctx, tau, configs))
+    return candidates, outcomes
 
 
 def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, list[Array]]:
@@ -178,7 +213,6 @@ def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, li
     as they were solved (all of them when the outcome is :attr:`MeetingOutcome.REACHED`)."""
     sc, ik = ctx.sc, ctx.ik
     tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
-    free = sc.target.grasp.free_axis
     R_g, p_g = (a[0] for a in ctx.motion.grasp_pose(tau + tf))
     p_pre = p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2]
     if ik.out_of_reach(p_pre, None, (np.zeros(3), np.eye(3))):
@@ -187,9 +221,8 @@ def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, li
     if x_pre is None:
         return MeetingOutcome.IK_UNSOLVED, []
     b = x_pre[7:]
-    R_free = np.eye(3)
-    if free is not None:
-        R_free = axis_angle_to_matrix(free, free_axis_angle(R_g, np.asarray(ctx.fk(x_pre[:7])[-2]), free))
+    R_free = axis_angle_to_matrix(ctx.sc.target.grasp.free_axis, _angle_about_free_axis(ctx, R_g, x_pre)) \
+        if ctx.held_rad is None and ctx.sc.target.grasp.free_axis is not None else np.eye(3)
     configs, x_node = [x_pre], x_pre
     for frac in TRACKING_NODES:
         t_node = frac * t2
@@ -202,6 +235,13 @@ def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, li
             return MeetingOutcome.IK_UNSOLVED, configs
         configs.append(x_node)
     return MeetingOutcome.REACHED, configs
+
+
+def _angle_about_free_axis(ctx: _Scan, R_world_grasp: Array, x: Array) -> float:
+    """The angle about the free grasp axis at which configuration ``x`` holds the grasp frame ``R_world_grasp``
+    [rad]: ``ctx``'s held angle plus the IK's own turn."""
+    R_ee = np.asarray(ctx.fk(x[:7])[-2])
+    return (ctx.held_rad or 0.0) + free_axis_angle(R_world_grasp, R_ee, ctx.sc.target.grasp.free_axis)
 
 
 def _scored(ctx: _Scan, tau: float, configs: list[Array]) -> _Candidate:
@@ -230,30 +270,61 @@ def _scored(ctx: _Scan, tau: float, configs: list[Array]) -> _Candidate:
     speed_excess = sum(max(s / m - 1.0, 0.0) for s, m in zip(speeds, TRACKING_SPEED_MARGIN, strict=True))
     # clearance first (capped: beyond 0.3 m it buys nothing), conditioning, then the rate limits
     score = min(clearance, 0.3) + 2.0 * min(manip, 0.1) - speed_excess - max(travel - 0.9, 0.0)
-    return _Candidate(score, clearance, [c.copy() for c in configs], tau)
+    psi = None
+    if sc.target.grasp.free_axis is not None:
+        psi = _angle_about_free_axis(ctx, ctx.motion.grasp_pose(tau + tf)[0][0], x_pre)
+    return _Candidate(score, clearance, [c.copy() for c in configs], tau, psi, ctx)
 
 
-def _best_guesses(ctx: _Scan, spline: UniformCubicBSpline, candidates: list[_Candidate],
-                  count: int) -> list[ApproachGuess]:
-    """The ``count`` best candidates at least :data:`MIN_SEPARATION_S` apart, as NLP starts, best first."""
-    sc, ik, motion, S_pre = ctx.sc, ctx.ik, ctx.motion, ctx.S_pre
-    tf = sc.phases.approach_s
-    candidates.sort(key=lambda c: -c.score)
+def _diverse(candidates: list[_Candidate], held: list[list[_Candidate]], count: int) -> list[_Candidate]:
+    """Up to ``count`` of the scan's own candidates, best first and pairwise distinct (:func:`_distinct`), then the
+    best distinct candidate of each held angle (the angle with the best candidate first): a grasp held at another
+    angle about a free axis is braked differently, and is tried once the scan's own grasps are."""
     chosen: list[_Candidate] = []
-    for cand in candidates:
-        if all(abs(cand.start_delay_s - c.start_delay_s) >= MIN_SEPARATION_S for c in chosen):
-            chosen.append(cand)
-        if len(chosen) == count:
-            break
+    _take(sorted(candidates, key=lambda c: -c.score), chosen, count)
+    for pool in sorted((sorted(h, key=lambda c: -c.score) for h in held if h), key=lambda pool: -pool[0].score):
+        _take(pool, chosen, len(chosen) + 1)
+    return chosen
+
+
+def _take(pool: list[_Candidate], chosen: list[_Candidate], up_to: int) -> None:
+    """Append to ``chosen`` the candidates of ``pool`` distinct from it, in order, until it holds ``up_to``."""
+    for candidate in pool:
+        if len(chosen) >= up_to:
+            return
+        if _distinct(candidate, chosen):
+            chosen.append(candidate)
+
+
+def _distinct(candidate: _Candidate, chosen: list[_Candidate]) -> bool:
+    """True when ``candidate`` meets at least :data:`MIN_SEPARATION_S` from each of ``chosen``, or holds the handle at
+    least :data:`ANGLE_SEPARATION_RAD` about the free axis from it."""
+    return all(abs(candidate.start_delay_s - c.start_delay_s) >= MIN_SEPARATION_S
+               or angles_apart(candidate.free_axis_angle_rad, c.free_axis_angle_rad) for c in chosen)
+
+
+def angles_apart(a_rad: float | None, b_rad: float | None) -> bool:
+    """True when two grasps hold the handle at least :data:`ANGLE_SEPARATION_RAD` apart about the free axis (never
+    when either angle is unknown, None)."""
+    if a_rad is None or b_rad is None:
+        return False
+    return abs((a_rad - b_rad + np.pi) % (2 * np.pi) - np.pi) >= ANGLE_SEPARATION_RAD
+
+
+def _best_guesses(spline: UniformCubicBSpline, chosen: list[_Candidate]) -> list[ApproachGuess]:
+    """The ``chosen`` candidates as NLP starts, in order: the base's drift corrected, Eq. 23's parameters fitted."""
     guesses = []
     for cand in chosen:
-        configs, tau, clearance = cand.configs, cand.start_delay_s, cand.clearance_m
+        sc, configs, tau, clearance = cand.ctx.sc, cand.configs, cand.start_delay_s, cand.clearance_m
+        tf, psi = sc.phases.approach_s, cand.free_axis_angle_rad
         if np.isfinite(clearance):
-            configs = correct_for_base_drift(sc, ik, motion, configs, tau, S_pre)
+            configs = correct_for_base_drift(sc, cand.ctx.ik, cand.ctx.motion, configs, tau, cand.ctx.S_pre)
+            if psi is not None:  # the correction's IK may turn a free grasp about its axis
+                psi = _angle_about_free_axis(cand.ctx, cand.ctx.motion.grasp_pose(tau + tf)[0][0], configs[0])
         x = configs[0]
         times = np.linspace(0.0, tf, 4 * spline.n_vertices)
         q_path = sc.q_initial + np.outer(smoothstep5(times / tf), x[:7] - sc.q_initial)
         params = fit_approach_params(spline, sc.q_initial, times, q_path)
         q_tracking = np.array([c[:7] for c in configs[1:]])
-        guesses.append(ApproachGuess(params, x[7:].copy(), tau, x[:7].copy(), q_tracking, clearance))
+        guesses.append(ApproachGuess(params, x[7:].copy(), tau, x[:7].copy(), q_tracking, clearance, psi))
     return guesses

@@ -8,7 +8,7 @@ plan's deadline.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,7 +17,7 @@ from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
-from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, reach_scan
+from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, angles_apart, reach_scan
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_parameters import ApproachParameters
 
@@ -34,6 +34,14 @@ COLD_START_ITERATIONS = 150
 AVOID_GAP_S = 2.0
 
 
+@dataclass(frozen=True)
+class TriedGrasp:
+    """A grasp a plan has tried: a retry from a guess holding the handle at about its angle keeps clear of its time."""
+
+    start_delay_s: float  # [s]
+    free_axis_angle_rad: float | None  # about a free grasp axis, from the configured grasp frame [rad]
+
+
 def decision_vector(start: ApproachParameters | ApproachSolution | ApproachGuess) -> Array:
     """``w`` without extras, ``[params, base offset, start delay, tracking nodes]``, of a start."""
     return np.concatenate([start.params, start.base_offset_m, [start.start_delay_s], start.q_tracking.ravel()])
@@ -43,7 +51,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
                    warm_start: ApproachParameters | ApproachSolution | None = None, max_starts: int = 3,
                    tracking_speed_scale: float | Array = 1.0, skip_guesses: int = 0, max_iterations: int | None = None,
                    scan: ScanOnDemand | None = None, deadline: Deadline = NO_DEADLINE,
-                   meeting_time_box_s: float | None = None, avoid_start_delays_s: tuple[float, ...] = (),
+                   meeting_time_box_s: float | None = None, avoid: tuple[TriedGrasp, ...] = (),
                    collision_raise_m: Array | None = None) -> ApproachSolution:
     """Solve ``problem`` for one observed target state.
 
@@ -58,8 +66,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     restoration phase). Past ``deadline`` no further start is tried and a running solve ends, status
     ``Out_Of_Time``. The approach's end and the tracking nodes stay on one side of every singular joint angle
     (:func:`_one_side_of_singularities`). ``meeting_time_box_s`` keeps every start within that many seconds of its
-    own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each of ``avoid_start_delays_s``
-    (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from a
+    own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each grasp of ``avoid`` at about its
+    angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from a
     scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried.
     ``collision_raise_m`` (the collision rows' order) raises those rows' lower bounds [m]
     (:mod:`planner.phases.approach_clearance`: where the distance dipped between via points).
@@ -82,7 +90,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
             break
         cold = attempt >= n_warm
         limit = min(left if left is not None else np.inf, COLD_START_ITERATIONS if cold else np.inf)
-        lbw, ubw = _meeting_time_box(problem, starts[attempt], meeting_time_box_s, avoid_start_delays_s)
+        angle = scan.result.guesses[skip_guesses + attempt - n_warm].free_axis_angle_rad if attempt >= n_warm else None
+        lbw, ubw = _meeting_time_box(problem, starts[attempt], meeting_time_box_s, _avoided_s(avoid, angle))
         if lbw is None:
             continue
         result = _solve_once(problem, state, starts[attempt], tracking_speed_scale, lbw, ubw, cold=cold,
@@ -121,6 +130,12 @@ def _base_box(problem: ApproachProblem, centre_m: Array, radius_m: float) -> tup
     lbw[base] = np.maximum(lbw[base], centre_m - radius_m)
     ubw[base] = np.minimum(ubw[base], centre_m + radius_m)
     return lbw, ubw
+
+
+def _avoided_s(avoid: tuple[TriedGrasp, ...], angle_rad: float | None) -> tuple[float, ...]:
+    """The meeting times [s] of the grasps in ``avoid`` a start holding the handle at ``angle_rad`` keeps clear of:
+    those at about its angle (all of them when an angle is unknown)."""
+    return tuple(t.start_delay_s for t in avoid if not angles_apart(t.free_axis_angle_rad, angle_rad))
 
 
 def _meeting_time_box(problem: ApproachProblem, w0: Array, box_s: float | None,

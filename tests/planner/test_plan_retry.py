@@ -20,6 +20,7 @@ import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
 from planner.deadline import Deadline
 from planner.nlp.outcome import SolveOutcome
+from planner.phases.approach_guess import angles_apart
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
 from planner.plan_grasps import BASE_OFFSET_BOX_M, BASE_OFFSET_GAP_M, SCREEN_BUDGET, other_base_offsets
@@ -28,10 +29,19 @@ from planner.verify.verifier import verify
 SCENARIO_II = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "scenario_II.toml"
 
 
+NEVER = 10**6  # a stand-in that succeeds from no scanned guess
+
+
 @pytest.fixture(scope="module")
 def planner_II():
     sc = load_scenario(SCENARIO_II)
     return sc, Planner(sc)
+
+
+def _scanned_guesses(sc, planner) -> int:
+    """How many guesses the scan of the default state gives a plan (its own meeting times, then the held angles)."""
+    return len(approach_guess_module.reach_scan(sc, planner.approach.spline, sc.target_state.as_state(),
+                                                GRASP_GUESSES).guesses)
 
 
 def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: int, problems: list | None = None,
@@ -59,7 +69,14 @@ def _stand_in(calls: list[tuple[int, int | None, float]], succeed_from_guess: in
 def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypatch):
     sc, planner = planner_II
     calls: list[tuple[int, int | None, float]] = []
-    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
+    angles: list[float] = []  # the free-axis angle each grasp holds the boom at [rad]
+    stand_in = _stand_in(calls, 1)
+
+    def stabilize(self, *args, **kwargs):
+        angles.append(self.tracking.free_axis_angle_rad)
+        return stand_in(self, *args, **kwargs)
+
+    monkeypatch.setattr(GraspCandidate, "stabilize", stabilize)
     scans = []
     reach_scan = approach_guess_module.reach_scan
     monkeypatch.setattr(approach_guess_module, "reach_scan", lambda *a: scans.append(a) or reach_scan(*a))
@@ -74,7 +91,8 @@ def test_a_failed_stabilization_moves_on_to_the_next_grasp(planner_II, monkeypat
     assert len(calls) == 2 and calls[1][0] >= 1
     # budgeted as well: the first grasp would remain to fall back to
     assert calls[1][1] == STABILIZATION_BUDGET
-    assert abs(calls[1][2] - calls[0][2]) > 1.0  # another meeting time, not the same grasp again
+    # another grasp, not the same again: another meeting time, or the boom held at another angle
+    assert abs(calls[1][2] - calls[0][2]) > 1.0 or angles_apart(angles[0], angles[1])
     assert plan.stabilization.status == "stand-in ok" and plan.approach.start_guess == calls[1][0]
     assert plan.t_grasp == pytest.approx(calls[1][2])  # the plan is assembled from the grasp that succeeded
     assert any("trying the approach's next guess" in note for note in plan.notes)
@@ -102,12 +120,23 @@ def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(pla
     problems = []
     bases: list = []
     _failed_approaches_from_other_bases(monkeypatch, bases)
-    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES, problems))
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER, problems))
+    skips: list[int] = []  # the scanned guess each retry's approach starts from
+    solve = plan_grasps_module.solve_approach
+
+    def recorded(*args, **kwargs):
+        if "skip_guesses" in kwargs:
+            skips.append(kwargs["skip_guesses"])
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(plan_grasps_module, "solve_approach", recorded)
     plan = planner.plan(sc.target_state.as_state())
-    # every grasp under the budget (scanned guesses in order), then the first again without it
+    # every grasp under the budget (the scanned guesses in order, to the last), then the first again without it
     assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
     guesses = [c[0] for c in calls[:-1]]
-    assert guesses[0] == 0 and guesses == sorted(set(guesses)) and guesses[-1] <= GRASP_GUESSES - 1
+    assert guesses[0] == 0 and max(guesses) == _scanned_guesses(sc, planner) - 1
+    # (a grasp's warm re-solve with tightened rates may end on an earlier guess's grasp: the scan goes on regardless)
+    assert skips == sorted(set(skips)) and skips[0] == 1
     # then every other base offset of the box, farthest from the first grasp's first, each said in the notes
     expected = other_base_offsets(sc, plan.approach.base_offset_m)
     order = [next(k for k, e in enumerate(expected) if np.array_equal(e, b)) for b in bases]
@@ -150,14 +179,14 @@ def test_screened_out_grasps_wait_until_no_grasp_passed_the_screen(planner_II, m
     calls.clear()
     screens.clear()
     monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [])  # the scanned grasps alone
-    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES, screens=screens,
-                                                               pass_screen_from_guess=GRASP_GUESSES))
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER, screens=screens,
+                                                               pass_screen_from_guess=NEVER))
     plan = planner.plan(sc.target_state.as_state())
     guesses = [c[0] for c in calls]
     n = guesses.index(max(guesses)) + 1  # the first round, up to the last grasp
     # the last scanned guess's grasp is not screened (no other remains); one before it is, when the approach from the
     # guesses after it then failed
-    screened = n - 1 if guesses[n - 1] == GRASP_GUESSES - 1 else n
+    screened = n - 1 if guesses[n - 1] == _scanned_guesses(sc, planner) - 1 else n
     assert screens[:n] == [SCREEN_BUDGET] * screened + [None] * (n - screened)
     assert guesses[n:] == [*guesses[:screened], 0] and screens[n:] == [None] * (len(calls) - n)
     assert [c[1] for c in calls[n:]] == [STABILIZATION_BUDGET] * screened + [None]
@@ -175,7 +204,7 @@ def test_past_the_deadline_no_further_grasp_is_tried(planner_II, monkeypatch):
     sc, planner = planner_II
     calls: list[tuple[int, int | None, float]] = []
     deadline = _SwitchedDeadline()
-    failing = _stand_in(calls, GRASP_GUESSES)
+    failing = _stand_in(calls, NEVER)
 
     def stabilize_then_run_out_of_time(self, *args):
         deadline.passed = True  # the budget ends during the first grasp's stabilization
@@ -234,7 +263,7 @@ def test_once_the_scanned_grasps_fail_the_chaser_waits_elsewhere(planner_II, mon
     calls: list[tuple[int, int | None, float]] = []
     elsewhere = np.array([0.0, -1.0])
     monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [elsewhere])
-    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, GRASP_GUESSES + 1))
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER))
     stabilize = GraspCandidate.stabilize
 
     def brakes_pinned_only(self, *args):
@@ -249,3 +278,27 @@ def test_once_the_scanned_grasps_fail_the_chaser_waits_elsewhere(planner_II, mon
     assert plan.approach.success and plan.t_grasp == pytest.approx(calls[-1][2])
     assert [c[0] for c in calls][-1] == -1 and all(c[0] >= 0 for c in calls[:-1])  # after every scanned grasp
     assert "a grasp with the chaser waiting at θ_b(0) = (+0.00, -1.00) ± 0.4 m" in plan.notes
+
+
+def test_an_approach_failing_from_one_guess_goes_on_from_the_next(planner_II, monkeypatch):
+    """A retry's approach that fails from a scanned guess (here: from the second, forced) does not end the scanned
+    grasps: the next retry starts from the guess after the one that failed, and its grasp is the plan."""
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 1))
+    solve = plan_grasps_module.solve_approach
+    skips: list[int] = []
+
+    def second_guess_fails(*args, **kwargs):
+        skips.append(kwargs.get("skip_guesses", 0))
+        if kwargs.get("skip_guesses") == 1:
+            failed = solve(*args, **{**kwargs, "max_starts": 1})
+            return replace(failed, success=False, status=SolveOutcome.ITERATION_BUDGET_EXHAUSTED, start_guess=1)
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(plan_grasps_module, "solve_approach", second_guess_fails)
+    plan = planner.plan(sc.target_state.as_state())
+    assert skips[:3] == [0, 1, 2]  # the first approach, the retry that failed from guess 1, then from guess 2
+    assert [c[0] for c in calls] == [0, plan.approach.start_guess] and plan.approach.start_guess >= 2
+    assert plan.stabilization.status == "stand-in ok"
+    assert any("the approach from scanned guess 2 on failed" in note for note in plan.notes)
