@@ -8,7 +8,9 @@ plan's deadline.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from itertools import islice
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,28 +79,23 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
                                                         skip_guesses, deadline)
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
-    starts = [] if warm_start is None else [decision_vector(warm_start)]
-    n_warm = len(starts)
-    for attempt in range(max_starts + n_warm):
-        if attempt == len(starts):
-            starts += [decision_vector(g) for g in scan.result.guesses[skip_guesses:]]
-        if attempt >= len(starts) or (attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s
-                                                       or deadline.passed)):
+    n_warm = 0 if warm_start is None else 1
+    for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses), max_starts + n_warm)):
+        if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
             break
-        cold = attempt >= n_warm
+        cold = guess is not None
         limit = min(left if left is not None else np.inf, COLD_START_ITERATIONS if cold else np.inf)
-        angle = scan.result.guesses[skip_guesses + attempt - n_warm].free_axis_angle_rad if attempt >= n_warm else None
-        lbw, ubw = _meeting_time_box(problem, starts[attempt], meeting_time_box_s, _avoided_s(avoid, angle))
+        lbw, ubw = _meeting_time_box(problem, w0, meeting_time_box_s, _avoided_s(avoid, angle))
         if lbw is None:
             continue
-        result = _solve_once(problem, state, starts[attempt], tracking_speed_scale, lbw, ubw, cold=cold,
+        result = _solve_once(problem, state, w0, tracking_speed_scale, lbw, ubw, cold=cold,
                              max_iterations=None if limit == np.inf else int(limit), deadline=deadline,
                              collision_raise_m=collision_raise_m)
         if cold:
-            result = replace(result, start_guess=skip_guesses + attempt - n_warm)
+            result = replace(result, start_guess=guess)
         iterations += result.iterations
         budget_spent = problem.budget.budget_exhausted and left is not None and limit == left
         if result.success or budget_spent or problem.budget.out_of_time:
@@ -107,6 +104,18 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         return _no_start(problem, SolveOutcome.NO_GUESS_LEFT, problem.scenario.base_offset_guess_m,
                          time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _starts(warm_start: ApproachParameters | ApproachSolution | None, scan: ScanOnDemand,
+            skip_guesses: int) -> Iterator[tuple[Array, int | None, float | None]]:
+    """The NLP starts in order, each ``(w0, scanned guess index or None for the warm start, its angle about a free
+    grasp axis)``: the warm start, then each scanned guess after the first ``skip_guesses`` once (the scan is made
+    only when a guess is asked for)."""
+    if warm_start is not None:
+        yield decision_vector(warm_start), None, None
+    for index in range(skip_guesses, len(scan.result.guesses)):
+        guess = scan.result.guesses[index]
+        yield decision_vector(guess), index, guess.free_axis_angle_rad
 
 
 def solve_approach_near(problem: ApproachProblem, state: TargetState, anchor: ApproachSolution, radius_m: float,

@@ -93,3 +93,33 @@ def test_a_cold_start_past_its_iterations_gives_way_to_the_next_guess(scenario_a
     assert 6 <= capped.iterations <= 9  # 2 each (a restoration-phase start calls back once more)
     monkeypatch.setattr(approach_solve_module, "COLD_START_ITERATIONS", 150)
     assert solve_approach(problem, state, max_starts=3).success
+
+
+def test_each_scanned_guess_after_the_skipped_is_tried_once_when_fewer_remain_than_starts(scenario_and_problem,
+                                                                                       monkeypatch):
+    """A retry from the scan's last guesses asks for more starts than remain (scenario II's scan holds more guesses
+    than a retry's ``max_starts``): each remaining guess is tried once, in order, and the solve ends there. Before,
+    the guesses were appended again once the list ran out, and the angle of a guess past the end was read (an
+    IndexError that ended a coverage plan with exit 70)."""
+    import planner.phases.approach_solve as approach_solve_module
+    from planner.phases.approach_guess import ScanOnDemand
+
+    sc, problem = scenario_and_problem
+    state = sc.target_state.as_state()
+    scan = ScanOnDemand(sc, problem.spline, state, 5)
+    guesses = scan.result.guesses
+    assert len(guesses) > 5  # the held angles' guesses come after the scan's own five
+    tried: list[float] = []
+    real = approach_solve_module._solve_once
+
+    def recorded(problem, state, w0, *args, **kwargs):
+        tried.append(float(w0[problem.decision.slice("start_delay_s")][0]))
+        return real(problem, state, w0, *args, **kwargs)
+
+    monkeypatch.setattr(approach_solve_module, "_solve_once", recorded)
+    monkeypatch.setattr(approach_solve_module, "COLD_START_ITERATIONS", 1)  # every start fails at once
+    skip = len(guesses) - 2
+    failed = solve_approach(problem, state, max_starts=5, skip_guesses=skip, scan=scan)
+    assert not failed.success
+    assert tried == [g.start_delay_s for g in guesses[skip:]]
+    assert failed.start_guess == len(guesses) - 1
