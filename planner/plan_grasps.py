@@ -177,6 +177,7 @@ class GraspSearch:
         self.notes: list[str] = []
         self._base_offsets: list[Array] = []  # where the chaser may wait for the grasps still to try (cold plans)
         self._tried_offsets: list[Array] = []  # θ_b(0) of the grasps tried so far [m]
+        self._next_guess = 0  # the scanned guess the next retry starts from (cold plans)
         self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
         self.stabilization_s = 0.0  # the phase's wall time: NLP builds (if new) and solves [s]
 
@@ -206,7 +207,7 @@ class GraspSearch:
                 return self._answer(*last)
             if last[1].status == SolveOutcome.SCREENED_OUT:
                 screened_out.append(candidate)
-            self._note_failure(*last, ("trying the approach's next guess" if self._scanned_guess_remains(candidate)
+            self._note_failure(*last, ("trying the approach's next guess" if self._scanned_guess_remains()
                                        else "trying another grasp") if more else "")
         for candidate in screened_out:
             if self.deadline.passed:
@@ -244,12 +245,11 @@ class GraspSearch:
 
     def _another_grasp_remains(self, candidate: GraspCandidate) -> bool:
         """True when a cold plan has a grasp to try after ``candidate``: a next scanned guess or another base offset."""
-        return self._scanned_guess_remains(candidate) or self._next_base_offset(consume=False) is not None
+        return self._scanned_guess_remains() or self._next_base_offset(consume=False) is not None
 
-    def _scanned_guess_remains(self, candidate: GraspCandidate) -> bool:
-        """True when a cold plan's approach has a next scanned guess after ``candidate``'s."""
-        app = candidate.app
-        return self.warm is None and app.success and 0 <= app.start_guess < self._scanned_guesses() - 1
+    def _scanned_guess_remains(self) -> bool:
+        """True when a cold plan's retries have a scanned guess left to start from."""
+        return self.warm is None and 0 < self._next_guess < self._scanned_guesses()
 
     def _grasps(self, first: GraspCandidate) -> Iterator[GraspCandidate]:
         """``first``, then the grasps the approach reaches from its next scanned guesses while one remains (an approach
@@ -257,19 +257,18 @@ class GraspSearch:
         elsewhere (:func:`other_base_offsets`)."""
         tried = [TriedGrasp(first.app.start_delay_s, first.tracking.free_axis_angle_rad)]
         self._tried_offsets.append(first.app.base_offset_m)
+        self._next_guess = first.app.start_guess + 1 if first.app.success else 0
         yield first
-        skip = first.app.start_guess + 1
-        while self.warm is None and first.app.success and 0 < skip < self._scanned_guesses() \
-                and not self.deadline.passed:
+        while self._scanned_guess_remains() and not self.deadline.passed:
+            skip = self._next_guess
             nxt = self._solve_approach(None, max_starts=GRASP_GUESSES, skip_guesses=skip,
                                        max_iterations=approach_retry_budget(first.app.iterations),
                                        meeting_time_box_s=MEETING_TIME_BOX_S, avoid=tuple(tried))
+            self._next_guess = nxt.start_guess + 1 if nxt.start_guess >= skip else self._scanned_guesses()
             if not nxt.success:
                 self.approach_s += nxt.solve_time_s
                 self.notes.append(f"the approach from scanned guess {skip + 1} on failed ({nxt.status})")
-                skip = nxt.start_guess + 1 if nxt.start_guess >= skip else self._scanned_guesses()
                 continue
-            skip = nxt.start_guess + 1  # (a re-solve below may end on another guess: the scan goes on from here)
             candidate = self._candidate(nxt)
             self.approach_s += candidate.app.solve_time_s
             self._tried_offsets.append(candidate.app.base_offset_m)
@@ -341,9 +340,12 @@ class GraspSearch:
                 if more is None:
                     break
                 raised = more if raised is None else np.maximum(raised, more)
-            # near the grasp whose demand was measured (free, a retry drifted back to a grasp that had failed)
-            retry = self._solve_approach(app.parameters, meeting_time_box_s=MEETING_TIME_BOX_S,
-                                         collision_raise_m=raised, max_iterations=self.resolve_iterations)
+            # near the grasp whose demand was measured (free, a retry drifted back to a grasp that had failed); should
+            # the warm start fail, only this grasp's own scanned guess (others are other grasps, tried in turn)
+            own = app.start_guess
+            retry = self._solve_approach(app.parameters, max_starts=1 if own >= 0 else 0, skip_guesses=max(own, 0),
+                                         meeting_time_box_s=MEETING_TIME_BOX_S, collision_raise_m=raised,
+                                         max_iterations=self.resolve_iterations)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = accumulated(app, retry)

@@ -122,10 +122,13 @@ def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(pla
     _failed_approaches_from_other_bases(monkeypatch, bases)
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER, problems))
     skips: list[int] = []  # the scanned guess each retry's approach starts from
+    resolves: list[tuple[int, int]] = []  # (max starts, skipped guesses) of each grasp's warm re-solve
     solve = plan_grasps_module.solve_approach
 
     def recorded(*args, **kwargs):
-        if "skip_guesses" in kwargs:
+        if args[2] is not None:
+            resolves.append((kwargs["max_starts"], kwargs["skip_guesses"]))
+        elif "skip_guesses" in kwargs:
             skips.append(kwargs["skip_guesses"])
         return solve(*args, **kwargs)
 
@@ -134,9 +137,11 @@ def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(pla
     # every grasp under the budget (the scanned guesses in order, to the last), then the first again without it
     assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
     guesses = [c[0] for c in calls[:-1]]
-    assert guesses[0] == 0 and max(guesses) == _scanned_guesses(sc, planner) - 1
-    # (a grasp's warm re-solve with tightened rates may end on an earlier guess's grasp: the scan goes on regardless)
+    assert guesses == sorted(set(guesses)) and guesses[0] == 0 and guesses[-1] == _scanned_guesses(sc, planner) - 1
     assert skips == sorted(set(skips)) and skips[0] == 1
+    # a grasp's re-solve (tightened rates, raised clearance) falls back, cold, to its own guess only: the others are
+    # other grasps, tried in turn (before, guesses 0-2: a later grasp re-solved could end on the first one's)
+    assert resolves and all(starts == 1 and skip in guesses for starts, skip in resolves)
     # then every other base offset of the box, farthest from the first grasp's first, each said in the notes
     expected = other_base_offsets(sc, plan.approach.base_offset_m)
     order = [next(k for k, e in enumerate(expected) if np.array_equal(e, b)) for b in bases]
