@@ -195,7 +195,7 @@ class TableQuery:
     def out_of_reach(self, state: TargetState, t_start: float) -> OutOfReach | None:
         """Why no solve can plan ``state`` when no meeting time of the window brings the grasp within the arm's reach
         (the cold plan's scan, seconds), else None; ``t_start`` (``time.perf_counter()``) dates the answer."""
-        scan = reach_scan(self.scenario, self.planner.approach.spline, state, GRASP_GUESSES)
+        scan = reach_scan(self.scenario, self.planner.approach.spline, state, GRASP_GUESSES, held_angles=False)
         return None if scan.reachable else OutOfReach(scan, time.perf_counter() - t_start)
 
     def cost_breakdowns(self, plan: GraspPlan, report: VerifyReport,

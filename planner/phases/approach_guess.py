@@ -125,9 +125,12 @@ def initial_guesses(scenario: Scenario, spline: UniformCubicBSpline, state: Targ
     return reach_scan(scenario, spline, state, count).guesses
 
 
-def reach_scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int = 3) -> ReachScan:
-    """:func:`initial_guesses` with what the scan found at each meeting time (deterministic)."""
-    return _scan(scenario, spline, state, count)
+def reach_scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int = 3,
+               held_angles: bool = True) -> ReachScan:
+    """:func:`initial_guesses` with what the scan found at each meeting time (deterministic). ``held_angles``: for a
+    free grasp axis, also the guesses held at :data:`FREE_AXIS_ANGLES_DEG` (a reach check or a search that starts from
+    the best few alone does not need them; they do not change the reach verdict)."""
+    return _scan(scenario, spline, state, count, held_angles)
 
 
 class ScanOnDemand:
@@ -154,7 +157,8 @@ class ScanOnDemand:
         return self._result
 
 
-def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int) -> ReachScan:
+def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int,
+          held_angles: bool) -> ReachScan:
     sc = scenario
     robot = sc.robot
     free = sc.target.grasp.free_axis
@@ -171,7 +175,7 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
         # nothing reachable: hand the NLP the initial configuration and let it report infeasibility
         candidates.append(_Candidate(-np.inf, -np.inf, [ctx.x_home] * (1 + len(TRACKING_NODES)), 0.0, None, ctx))
     reached = [c.start_delay_s for c in candidates if np.isfinite(c.score)]
-    held = [] if free is None or not reached else \
+    held = [] if free is None or not reached or not held_angles else \
         [_scan_window(_held_at(ctx, np.radians(a)), reached)[0] for a in FREE_AXIS_ANGLES_DEG]
     return ReachScan(_best_guesses(spline, _diverse(candidates, held, count)), sc.phases.max_start_delay_s,
                      tuple(outcomes))

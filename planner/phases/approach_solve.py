@@ -218,9 +218,9 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     pinned = replace(problem.scenario, base_offset_bounds_m=((bx, bx), (bz, bz)),
                      base_offset_guess_m=np.array([bx, bz]))
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
-    scan = reach_scan(pinned, problem.spline, state, max_starts)
+    scan = reach_scan(pinned, problem.spline, state, max_starts, held_angles=False)
     result, iterations = None, 0
-    for g in scan.guesses if scan.reachable else []:
+    for g in scan.guesses[:max_starts] if scan.reachable else []:
         limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
                              max_iterations=limit, deadline=deadline)

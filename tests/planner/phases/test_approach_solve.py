@@ -123,3 +123,23 @@ def test_each_scanned_guess_after_the_skipped_is_tried_once_when_fewer_remain_th
     assert not failed.success
     assert tried == [g.start_delay_s for g in guesses[skip:]]
     assert failed.start_guess == len(guesses) - 1
+
+
+def test_an_approach_from_a_base_offset_starts_from_at_most_its_max_starts(scenario_and_problem, monkeypatch):
+    """The chaser waiting elsewhere starts from ``max_starts`` scanned guesses and no more, even when every start fails
+    at once (before, every guess of the scan was tried: with the held angles, up to four more)."""
+    import numpy as np
+
+    import planner.phases.approach_solve as approach_solve_module
+    from planner.phases.approach_solve import solve_approach_from_base
+
+    sc, problem = scenario_and_problem
+    state = sc.target_state.as_state()
+    starts = []
+    real = approach_solve_module._solve_once
+    monkeypatch.setattr(approach_solve_module, "_solve_once", lambda *a, **k: starts.append(a[2]) or real(*a, **k))
+    monkeypatch.setattr(approach_solve_module, "COLD_START_ITERATIONS", 1)  # every start fails at once
+    for max_starts in (1, 2):
+        starts.clear()
+        failed = solve_approach_from_base(problem, state, np.array([0.0, 0.0]), max_starts, 1.0, max_iterations=100)
+        assert not failed.success and len(starts) == max_starts

@@ -78,11 +78,19 @@ def test_first_guess_is_the_scans_own(scenario_II, monkeypatch):
     sc = scenario_II
     state = sc.target_state.as_state()
     with_angles = reach_scan(sc, _spline(sc), state, 5)
+    held = approach_guess.FREE_AXIS_ANGLES_DEG
     monkeypatch.setattr(approach_guess, "FREE_AXIS_ANGLES_DEG", ())
     without = reach_scan(sc, _spline(sc), state, 5)
     np.testing.assert_array_equal(with_angles.guesses[0].params, without.guesses[0].params)
     assert with_angles.guesses[0].start_delay_s == without.guesses[0].start_delay_s
     assert with_angles.outcomes == without.outcomes  # the reach verdict is the scan's own
+    # a scan asked for no held angles (a query's reach check, a start from another base offset) is that same scan
+    monkeypatch.setattr(approach_guess, "FREE_AXIS_ANGLES_DEG", held)
+    unheld = reach_scan(sc, _spline(sc), state, 5, held_angles=False)
+    assert unheld.outcomes == without.outcomes
+    assert len(unheld.guesses) == len(without.guesses) < len(with_angles.guesses)
+    for a, b in zip(unheld.guesses, without.guesses, strict=True):
+        np.testing.assert_array_equal(a.params, b.params)
 
 
 def _candidate(score: float, t_s: float, psi_deg: float | None) -> _Candidate:
