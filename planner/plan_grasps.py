@@ -199,7 +199,7 @@ class GraspSearch:
             self._base_offsets = other_base_offsets(self.planner.scenario, first.app.base_offset_m)
         screened_out: list[GraspCandidate] = []
         for candidate in self._grasps(first):
-            more = self._another_grasp_remains(candidate)
+            more = self._another_grasp_remains()
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
             last = candidate, self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
@@ -243,8 +243,8 @@ class GraspSearch:
         self.notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s {what}"
                           + (f"; {then}" if then else ""))
 
-    def _another_grasp_remains(self, candidate: GraspCandidate) -> bool:
-        """True when a cold plan has a grasp to try after ``candidate``: a next scanned guess or another base offset."""
+    def _another_grasp_remains(self) -> bool:
+        """True when a cold plan has another grasp to try: a scanned guess left or another base offset."""
         return self._scanned_guess_remains() or self._next_base_offset(consume=False) is not None
 
     def _scanned_guess_remains(self) -> bool:
