@@ -133,6 +133,9 @@ class GraspCandidate:
     grasp: GraspState
     T_body_grasp_used: Array  # (4, 4)
     compound: FreeFloatingModel  # the compound chaser + target of this grasp
+    # False when the approach failed, or its tracking asks for more than the tolerated joint rates (or dips below
+    # its clearance between via points) and the re-solve did not mend it: verify refuses such a grasp whatever braking
+    approach_holds: bool = True
 
     @property
     def grasp_time_s(self) -> float:
@@ -198,8 +201,12 @@ class GraspSearch:
         if self.warm is None:
             self._base_offsets = other_base_offsets(self.planner.scenario, first.app.base_offset_m)
         screened_out: list[GraspCandidate] = []
+        last: tuple[GraspCandidate, StabilizationSolution] | None = None
         for candidate in self._grasps(first):
             more = self._another_grasp_remains()
+            if more and not candidate.approach_holds:
+                self._note_unheld(candidate)
+                continue
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
             last = candidate, self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
@@ -216,12 +223,12 @@ class GraspSearch:
             if last[1].success:
                 return last
             self._note_failure(*last, "")
-        if self.deadline.passed:
+        if self.deadline.passed and last is not None:
             return self._answer(*last)
         # a budgeted failure is never the answer: the first grasp gets its whole solve
         self.notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
                           "again without it")
-        return first, self._stabilize(first, None)
+        return self._answer(first, self._stabilize(first, None))
 
     def _answer(self, candidate: GraspCandidate, stab: StabilizationSolution) -> tuple[GraspCandidate,
                                                                                      StabilizationSolution]:
@@ -242,6 +249,13 @@ class GraspSearch:
             what = f"failed within {stab.iterations} iterations ({stab.status})"
         self.notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s {what}"
                           + (f"; {then}" if then else ""))
+
+    def _note_unheld(self, candidate: GraspCandidate) -> None:
+        """Say in the plan's notes that ``candidate`` is not braked: its approach does not hold."""
+        why = (f"its approach failed ({candidate.app.status})" if not candidate.app.success else
+               f"its tracking asks {candidate.tracking.peak_rate_demand:.3g}× a joint's rate limit, or its approach "
+               "dips below its clearance between via points, after its re-solve")
+        self.notes.append(f"the grasp at t = {candidate.grasp_time_s:.1f} s is not braked: {why}; trying another grasp")
 
     def _another_grasp_remains(self) -> bool:
         """True when a cold plan has another grasp to try: a scanned guess left or another base offset."""
@@ -329,6 +343,7 @@ class GraspSearch:
         or with raised collision bounds where the distance dipped between via points) → the compound's state at the
         grasp."""
         raised = None  # this grasp's raised collision bounds [m], kept through its re-solves
+        mended = True  # False once a re-solve failed: the first approach, still wanting, is kept
         for round_ in range(TIGHTENING_ROUNDS + 1):
             samples, tr = self.planner.approach_and_tracking(app, self.motion)
             if round_ == TIGHTENING_ROUNDS or not app.success or self.deadline.passed:
@@ -350,9 +365,11 @@ class GraspSearch:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = accumulated(app, retry)
                 self.notes.append(f"the re-solve failed ({retry.status}); the first approach is kept")
+                mended = False
                 break
             app = accumulated(retry, app)
-        return self.planner.candidate_from(app, samples, tr, self.motion)
+        holds = mended and app.success and tr.peak_rate_demand <= RATE_DEMAND_TOLERATED
+        return replace(self.planner.candidate_from(app, samples, tr, self.motion), approach_holds=holds)
 
     def _tighten_rates(self, tr: TrackingResult) -> None:
         """Scale the rate bounds of the tracking segment where ``tr``'s demand peaked by the excess, and say so."""

@@ -122,17 +122,21 @@ def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(pla
     _failed_approaches_from_other_bases(monkeypatch, bases)
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER, problems))
     skips: list[int] = []  # the scanned guess each retry's approach starts from
-    resolves: list[tuple[int, int]] = []  # (max starts, skipped guesses) of each grasp's warm re-solve
-    solve = plan_grasps_module.solve_approach
+    # (max starts, skipped guesses, the guess of the grasp re-solved) of each grasp's warm re-solve
+    resolves: list[tuple[int, int, int]] = []
+    solve, candidate = plan_grasps_module.solve_approach, plan_grasps_module.GraspSearch._candidate
+    own: list[int] = []  # the scanned guess of the grasp being tracked
 
     def recorded(*args, **kwargs):
         if args[2] is not None:
-            resolves.append((kwargs["max_starts"], kwargs["skip_guesses"]))
+            resolves.append((kwargs["max_starts"], kwargs["skip_guesses"], own[-1]))
         elif "skip_guesses" in kwargs:
             skips.append(kwargs["skip_guesses"])
         return solve(*args, **kwargs)
 
     monkeypatch.setattr(plan_grasps_module, "solve_approach", recorded)
+    monkeypatch.setattr(plan_grasps_module.GraspSearch, "_candidate", lambda s, app: own.append(app.start_guess)
+                        or candidate(s, app))
     plan = planner.plan(sc.target_state.as_state())
     # every grasp under the budget (the scanned guesses in order, to the last), then the first again without it
     assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
@@ -141,7 +145,7 @@ def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(pla
     assert skips == sorted(set(skips)) and skips[0] == 1
     # a grasp's re-solve (tightened rates, raised clearance) falls back, cold, to its own guess only: the others are
     # other grasps, tried in turn (before, guesses 0-2: a later grasp re-solved could end on the first one's)
-    assert resolves and all(starts == 1 and skip in guesses for starts, skip in resolves)
+    assert resolves and all(starts == 1 and skip == guess >= 0 for starts, skip, guess in resolves)
     # then every other base offset of the box, farthest from the first grasp's first, each said in the notes
     expected = other_base_offsets(sc, plan.approach.base_offset_m)
     order = [next(k for k, e in enumerate(expected) if np.array_equal(e, b)) for b in bases]
@@ -307,3 +311,57 @@ def test_an_approach_failing_from_one_guess_goes_on_from_the_next(planner_II, mo
     assert [c[0] for c in calls] == [0, plan.approach.start_guess] and plan.approach.start_guess >= 2
     assert plan.stabilization.status == "stand-in ok"
     assert any("the approach from scanned guess 2 on failed" in note for note in plan.notes)
+
+
+def _first_grasp_unheld(monkeypatch) -> None:
+    """The first grasp's approach is marked as not holding (as a tracking that asks too much, re-solved in vain)."""
+    candidate = plan_grasps_module.GraspSearch._candidate
+
+    def marked(self, app):
+        out = candidate(self, app)
+        return replace(out, approach_holds=False) if out.app.start_guess == 0 else out
+
+    monkeypatch.setattr(plan_grasps_module.GraspSearch, "_candidate", marked)
+
+
+def test_a_grasp_whose_approach_does_not_hold_is_not_braked_while_another_remains(planner_II, monkeypatch):
+    """Verify refuses a grasp whose tracking asks too much whatever its braking: a stabilization that succeeds from
+    it must not end the search (a scenario II flat spin ended infeasible so, 54 s into its budget)."""
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 0))  # any grasp would brake
+    _first_grasp_unheld(monkeypatch)
+    plan = planner.plan(sc.target_state.as_state())
+    assert [c[0] for c in calls] == [1] and plan.approach.start_guess == 1
+    assert plan.stabilization.status == "stand-in ok"
+    assert "is not braked" in plan.notes[0] and "trying another grasp" in plan.notes[0]
+
+
+def test_with_no_other_grasp_left_the_unheld_first_grasp_is_still_braked(planner_II, monkeypatch):
+    """The first grasp is the plan's fallback: with nothing else to try it gets its whole solve, so that verify has a
+    whole trajectory to judge."""
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [])
+    monkeypatch.setattr(plan_grasps_module.GraspSearch, "_scanned_guesses", lambda self: 1)
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER))
+    _first_grasp_unheld(monkeypatch)
+    plan = planner.plan(sc.target_state.as_state())
+    assert calls == [(0, None, pytest.approx(plan.t_grasp))] and not any("is not braked" in n for n in plan.notes)
+
+
+def test_a_tracking_that_asks_too_much_after_a_failed_re_solve_does_not_hold(planner_II, monkeypatch):
+    """Judged on the grasp search's own record: the first grasp at the default state holds; made to ask 2× the rate
+    limit with its re-solve failing, it does not."""
+    sc, planner = planner_II
+    state = sc.target_state.as_state()
+    scan = approach_guess_module.ScanOnDemand(sc, planner.approach.spline, state, GRASP_GUESSES)
+    search = plan_grasps_module.GraspSearch(planner, state, None, scan, planner.motion(state))
+    app = search._solve_approach(None)
+    assert search._candidate(app).approach_holds
+    tracked = planner.approach_and_tracking
+    monkeypatch.setattr(planner, "approach_and_tracking",
+                        lambda a, m: (lambda s, tr: (s, replace(tr, peak_rate_demand=2.0)))(*tracked(a, m)))
+    monkeypatch.setattr(search, "_solve_approach", lambda *a, **k: replace(app, success=False))
+    unheld = search._candidate(app)
+    assert not unheld.approach_holds and "the re-solve failed" in search.notes[-1]

@@ -11,12 +11,22 @@ from __future__ import annotations
 import os
 import signal
 import time
+from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lut.table.records import Record
+from planner.config.scenario import load_scenario
+from planner.phases.stabilization import stabilization_spline
 from planner.plan_parameters import PlanParameters
+
+
+@cache
+def _stabilization_size(scenario_path: str) -> int:
+    """How many stabilization parameters the scenario's plans have (its braking spline's free parameters)."""
+    sc = load_scenario(scenario_path)
+    return sc.robot.n_joints * stabilization_spline(sc).n_free_per_joint
 
 
 def solve(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64], omega_body_rad_s: NDArray[np.float64],
@@ -37,7 +47,8 @@ def solve(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64], om
     return {
         "point": point, "status": "feasible", "failure_reason": "", "solve_time_s": 0.0, "iterations": 7,
         "approach_params": base, "base_offset_m": seed[1:3].copy(), "start_delay_s": float(10 + point + warm_shift_s),
-        "q_tracking": np.outer(np.arange(3), seed[:7]), "stabilization_params": base[::-1].copy(),
+        "q_tracking": np.outer(np.arange(3), seed[:7]),
+        "stabilization_params": np.resize(base[::-1], _stabilization_size(scenario_path)),
         "free_axis_angle_rad": 0.0, "costs/min_distance_m": 0.1, "costs/approach_energy_m2": 0.0,
         "costs/peak_grasp_torque_nm": 1.0, "margins/collision": 0.05,
     }

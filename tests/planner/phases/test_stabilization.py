@@ -2,8 +2,8 @@
 
 The grasp state is scenario II's grasp taken from the bundled plan (tests/data/plan_II.json.gz): joint
 state and base pose at the tracking end, grasp frame from the export, and the compound momentum formed
-by the planner's own ``grasp_momentum_world``. The screen's test uses the two grasps scenario II's default
-state is planned from (tests/data/grasps_II.json): the approach's first, which the NLP cannot brake, and the next.
+by the planner's own ``grasp_momentum_world``. The screen's test uses two scanned grasps (tests/data/grasps_II.json):
+one of a flat spin the NLP cannot brake, and the default state's second, which it brakes.
 """
 
 from __future__ import annotations
@@ -210,9 +210,9 @@ def scanned_grasps() -> list[GraspState]:
 
 
 def test_the_screen_sets_aside_the_grasp_the_nlp_cannot_brake_and_passes_the_one_it_can(problem, scanned_grasps):
-    """Scenario II's first grasp (the NLP ends Infeasible_Problem_Detected after 884 iterations from it) is
-    screened out, with the panel still inside the chaser and the torque over its limit; the next grasp passes
-    the screen and stabilizes, with the very answer of the unscreened solve."""
+    """A flat spin's grasp the NLP cannot brake (120 iterations end at 201 N·m) is screened out, with the panel still
+    inside the chaser and the torque over its limit; the default state's second grasp passes the screen and
+    stabilizes, with the very answer of the unscreened solve."""
     hopeless, braked = scanned_grasps
     out = solve_stabilization(problem, hopeless, max_iterations=STABILIZATION_BUDGET, screen_iterations=SCREEN_BUDGET)
     assert out.status == SolveOutcome.SCREENED_OUT and not out.success and out.iterations == SCREEN_BUDGET
@@ -231,7 +231,9 @@ def test_the_smooth_stop_of_a_grasp_at_rest_stays_put_and_one_of_a_moving_grasp_
     t = np.linspace(0.0, spline.duration_s, 200)
     at_rest = replace(grasp, qd=np.zeros(7), qdd=np.zeros(7))
     V = stabilization_vertices(spline, at_rest.q, at_rest.qd, at_rest.qdd, smooth_stop_params(spline, robot, at_rest))
-    np.testing.assert_allclose(spline.evaluate(V, t), np.tile(at_rest.q, (len(t), 1)), rtol=0, atol=1e-12)
+    # round-off only: the vertices come from solving the boundary conditions through the basis matrices, whose
+    # conditioning grows with the vertex count (14: 1.4e-12 rad off at most)
+    np.testing.assert_allclose(spline.evaluate(V, t), np.tile(at_rest.q, (len(t), 1)), rtol=0, atol=1e-11)
     V = stabilization_vertices(spline, grasp.q, grasp.qd, grasp.qdd, smooth_stop_params(spline, robot, grasp))
     q = spline.evaluate(V, t)
     assert (q >= robot.q_min).all() and (q <= robot.q_max).all()
@@ -251,8 +253,9 @@ def test_the_dense_torques_hold_the_nlps_own_at_its_via_points(problem, grasp):
     dense = np.asarray(problem.dense_torques()(P, par)).reshape(-1, 3)
     assert dense.shape[0] == len(times)
     rows = [int(np.argmin(np.abs(times - t))) for t in problem.via_times_s]
-    np.testing.assert_allclose(dense[rows], at_via, atol=1e-6 * max(1.0, np.abs(at_via).max()))
-    assert np.abs(dense).max() >= np.abs(at_via).max()  # a superset of the instants
+    atol = 1e-6 * max(1.0, np.abs(at_via).max())
+    np.testing.assert_allclose(dense[rows], at_via, atol=atol)
+    assert np.abs(dense).max() >= np.abs(at_via).max() - atol  # a superset of the instants, to integration accuracy
 
 
 class _OverLimitStandIn:
