@@ -134,7 +134,7 @@ class Planner:
         return self._stabilization
 
     def plan(self, state: TargetState, warm_start: PlanParameters | GraspPlan | None = None,
-             deadline: Deadline = NO_DEADLINE) -> GraspPlan:
+             deadline: Deadline = NO_DEADLINE, grasp_by: Deadline | None = None) -> GraspPlan:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
 
         A cold plan whose scan of meeting times reaches none raises :class:`OutOfReach` at once (without a
@@ -144,7 +144,9 @@ class Planner:
         stay in one family of solutions). With approach costs (Eq. 14-16) the plan is the costed approach's own
         optimum where it can be braked, else that feasibility plan's grasp, its cost then lowered from there
         (:mod:`planner.plan_costed`). Past ``deadline`` no new solve starts and
-        a running one ends: the plan is what was found by then (its notes say so; verify judges it).
+        a running one ends: the plan is what was found by then (its notes say so; verify judges it). ``grasp_by``
+        (default ``deadline``) is the instant by which a braked grasp must be found: a costed plan's descent may go
+        on to ``deadline`` after it; a caller with a cold plan to follow a warm one gives the warm one a share.
         """
         t_start = time.perf_counter()
         warm = warm_start.parameters if isinstance(warm_start, GraspPlan) else warm_start
@@ -153,21 +155,24 @@ class Planner:
             raise OutOfReach(scan.result, time.perf_counter() - t_start)
         if deadline.bounded and not deadline.passed:
             self._build_stabilization(cold=warm is None)
+        grasp_by = deadline if grasp_by is None else grasp_by
         if self.scenario.costs.weights_approach:
-            plan = self._plan_costed(state, warm, scan, deadline)
+            plan = self._plan_costed(state, warm, scan, deadline, grasp_by)
         else:
-            search = GraspSearch(self, state, warm, scan, self.motion(state), deadline)
+            search = GraspSearch(self, state, warm, scan, self.motion(state), grasp_by)
             candidate, stab = search.run()
             plan = self.assemble(state, candidate, stab, search.timings_s(), search.notes)
         plan.timings_s["total_s"] = time.perf_counter() - t_start
         return plan
 
     def _plan_costed(self, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
-                     deadline: Deadline) -> GraspPlan:
+                     deadline: Deadline, grasp_by: Deadline) -> GraspPlan:
         """A plan with approach costs: the costed approach's own optimum if it can be braked, else the feasibility
-        plan's grasp (warm from ``warm`` when given), then its cost lowered from there (:mod:`planner.plan_costed`)."""
+        plan's grasp (warm from ``warm`` when given), found by ``grasp_by``, then its cost lowered from there until
+        ``deadline`` (:mod:`planner.plan_costed`)."""
         # the feasibility planner is built only where the costed optimum cannot be braked (1.9 s of a cold plan)
-        out = plan_costed(self, lambda: self.feasibility_planner, state, warm, scan, self.motion(state), deadline)
+        out = plan_costed(self, lambda: self.feasibility_planner, state, warm, scan, self.motion(state), deadline,
+                          grasp_by)
         return self.assemble(state, out.candidate, out.stabilization, out.timings_s, out.notes)
 
     @property

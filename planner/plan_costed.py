@@ -90,16 +90,17 @@ class CostDescent:
 
 def plan_costed(planner: PhasePlanner, feasibility: Callable[[], PhasePlanner], state: TargetState,
                 warm: PlanParameters | None, scan: ScanOnDemand, motion: TargetMotion,
-                deadline: Deadline) -> CostDescent:
+                deadline: Deadline, grasp_by: Deadline | None = None) -> CostDescent:
     """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): the costed approach's own
     optimum, kept if it can be braked; else the planner ``feasibility()`` gives (the same scenario without approach
-    costs, called only then) finds a stabilized grasp, warm from ``warm`` when given; then the descent from the
-    grasp kept."""
+    costs, called only then) finds a stabilized grasp, warm from ``warm`` when given; both by ``grasp_by`` (default
+    ``deadline``); then the descent from the grasp kept, until ``deadline``."""
+    grasp_by = deadline if grasp_by is None else grasp_by
     timings_s = {"approach_s": 0.0, "stabilization_s": 0.0}
-    out = _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(deadline), timings_s)
+    out = _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(grasp_by), timings_s)
     scale = untightened_speed_scale()
     if out is None:
-        search = GraspSearch(feasibility(), state, warm, scan, motion, deadline, FEASIBILITY_RESOLVE_ITERATIONS)
+        search = GraspSearch(feasibility(), state, warm, scan, motion, grasp_by, FEASIBILITY_RESOLVE_ITERATIONS)
         candidate, stab = search.run()
         found = search.timings_s()
         out = CostDescent(candidate, stab, {k: timings_s[k] + found[k] for k in timings_s},

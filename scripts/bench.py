@@ -26,8 +26,9 @@ Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --c
 table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II_flat_spin``.
 
 ``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
-``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget, one process
-at a time: about a minute per state on one core. Alone: ``scripts/bench.py --only optimal --optimal-states 10``.
+``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget
+(``--optimal-budget-s``), one process at a time: about a minute per state on one core (scenario I). Alone:
+``scripts/bench.py --only optimal --optimal-states 10``.
 
 ``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many
 no meeting time brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a
@@ -88,6 +89,14 @@ def positive_int(text: str) -> int:
     return value
 
 
+def positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    value = float(text)
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number above 0, got {text}")
+    return value
+
+
 def coverage_kinds(text: str) -> tuple[str, ...]:
     """An argparse type: coverage kind names, comma-separated, each one of :data:`KINDS`."""
     names = tuple(name.strip() for name in text.split(",") if name.strip())
@@ -132,6 +141,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--optimal-states", type=positive_int, default=None, metavar="N",
                     help="optimal: seeded off-grid states, each a query and a cold offline optimum (default 30; "
                          "--quick 2; --trim 1)")
+    ap.add_argument("--optimal-budget-s", type=positive_float, default=None, metavar="S",
+                    help="optimal: each offline optimum's budget (default 600 s; a scenario II costed plan descends "
+                         "to its budget, so its table's --point-timeout is the like-for-like choice)")
     ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
                     help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
                          "--out file are kept, so one part can be re-measured after a change")
@@ -190,7 +202,8 @@ def main(argv: list[str] | None = None) -> int:
     cov = coverage_settings_of(args)
     settings = replace(settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s,
                                     args.plan_with_costs, args.refine_budget_s, cov),
-                       optimal=optimal_settings(args.quick, args.trim, args.optimal_table, args.optimal_states))
+                       optimal=optimal_settings(args.quick, args.trim, args.optimal_table, args.optimal_states,
+                                                        args.optimal_budget_s))
     only = None
     if args.only is not None:
         only = tuple(name.strip() for name in args.only.split(",") if name.strip())

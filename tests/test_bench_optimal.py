@@ -83,3 +83,16 @@ def test_trim_runs_the_section_on_the_golden_table_and_says_it_has_no_costs():
     assert "feasibility-only" in out["skipped"] and out["runs"] is None and out["table"] == "tests/data/ci_golden.h5"
     missing = section.optimal(replace(settings, optimal=optimal_settings(True, True, ROOT / "nowhere.h5", None)))
     assert "no table at" in missing["skipped"] and set(section.SUMMARY_KEYS) <= missing.keys()
+
+
+def test_the_offline_optimums_budget_is_an_option_that_refuses_nonsense():
+    """Scenario II's costed plans descend to their budget, so its bench gives the optimum the table's own point
+    timeout; the default stays 600 s, and a budget that is not a positive finite number is refused."""
+    import bench
+
+    assert optimal_settings(False, False, None, None).optimum_budget_s == 600.0
+    args = bench.parse_args(["--optimal-budget-s", "145"])
+    assert optimal_settings(False, False, None, None, args.optimal_budget_s).optimum_budget_s == 145.0
+    for bad in ("0", "-5", "inf", "nan"):
+        with pytest.raises(SystemExit):
+            bench.parse_args(["--optimal-budget-s", bad])

@@ -35,6 +35,7 @@ from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.stabilization_repair import repaired_plan
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
+from lut.solve.point_worker import WARM_SHARE
 from lut.table.grid import Grid
 from lut.table.grid_config import load_grid_text
 from lut.table.grid_projection import project_to_grid
@@ -55,10 +56,9 @@ from planner.verify.verifier import VerifyReport, verify
 PERIOD_FREE = float("inf")  # the spin period of a target that does not spin [s]
 FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]
 MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
-# share of the time left that a warm refine of an infeasible interpolated plan gets when a cold solve follows:
-# a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
+# a warm refine of an infeasible interpolated plan gets the build's WARM_SHARE of the time left when a cold solve
+# follows: a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
 # plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
-WARM_SHARE = 0.5
 # and at most this [s]: a warm refine that fails holds the cold solve back for its whole share, while those that
 # succeed need far less (README "Envelope tables")
 WARM_REFINE_CAP_S = 30.0

@@ -48,6 +48,10 @@ KWARG_PREFIX = "kw/"  # further keyword arguments of the solver (e.g. a build's 
 DONE_TOKEN = "lutgen-point-done"  # a served point's answer line (a solver's own prints on stdout are skipped)
 _PLANNERS: dict[str, Planner] = {}
 PLANNERS_KEPT = 2  # a planner holds its compiled problems (hundreds of MB): a kept process keeps few
+# share of the time left within which a warm plan must find a braked grasp when a cold plan follows it: a neighbour's
+# grasp that cannot be braked here held its stabilization to the point's timeout, and the cold plan that would have
+# been feasible never ran (README "Optimal tables"); a costed plan's descent still goes on to the deadline
+WARM_SHARE = 0.5
 
 
 def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
@@ -77,7 +81,8 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
         warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.max_start_delay_s)
     t0 = time.perf_counter()
     deadline = plan_deadline(deadline_at_s)
-    result = verified_plan(planner, point, state, warm_start, deadline)
+    grasp_by = warm_grasp_deadline(deadline) if cold_fallback and warm_start is not None else None
+    result = verified_plan(planner, point, state, warm_start, deadline, grasp_by)
     if cold_fallback and warm_start is not None and result.status is not PointStatus.FEASIBLE and not deadline.passed:
         cold = verified_plan(planner, point, state, None, deadline)
         kept = cold if cold.status is PointStatus.FEASIBLE else result  # else the neighbour's family's verdict
@@ -98,16 +103,25 @@ def plan_deadline(deadline_at_s: float | None) -> Deadline:
     return NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
 
 
+def warm_grasp_deadline(deadline: Deadline) -> Deadline:
+    """The instant by which a warm plan that a cold one follows must find a braked grasp: :data:`WARM_SHARE` of what
+    is left of ``deadline`` (unbounded stays unbounded)."""
+    if not deadline.bounded:
+        return deadline
+    return deadline.earlier((1.0 - WARM_SHARE) * max(deadline.remaining_s(), 0.0))
+
+
 def verified_plan(planner: Planner, point: int, state: TargetState, warm_start: PlanParameters | None,
-                  deadline: Deadline) -> PointResult:
-    """The plan of ``state`` (warm from ``warm_start``, cold without) verified, as the point's result; a cold plan
-    proved out of reach is an infeasible result without parameters."""
+                  deadline: Deadline, grasp_by: Deadline | None = None) -> PointResult:
+    """The plan of ``state`` (warm from ``warm_start``, cold without) verified, as the point's result; its braked
+    grasp found by ``grasp_by`` (default ``deadline``); a cold plan proved out of reach is an infeasible result
+    without parameters."""
     from planner.plan import OutOfReach
     from planner.verify.verifier import verify
 
     t0 = time.perf_counter()
     try:
-        plan = planner.plan(state, warm_start, deadline)
+        plan = planner.plan(state, warm_start, deadline, grasp_by)
     except OutOfReach as exc:
         return out_of_reach_result(point, str(exc), time.perf_counter() - t0)
     return result_from_plan(point, plan, verify(plan))

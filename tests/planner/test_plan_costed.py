@@ -117,7 +117,8 @@ class _Direct:
         monkeypatch.setattr(costed, "GraspSearch", Search)
         monkeypatch.setattr(costed, "solve_approach", self.solve)
         monkeypatch.setattr(costed, "approach_cost", lambda problem, state, app: approach_energy(app.base_offset_m))
-        monkeypatch.setattr(costed, "_descend", lambda *args: None)
+        self.descents: list[Deadline] = []
+        monkeypatch.setattr(costed, "_descend", lambda *args: self.descents.append(args[-1]))
         self.planner = SimpleNamespace(approach="costed NLP", approach_and_tracking=lambda app, motion: (None, None),
                                        candidate_from=lambda app, samples, tr, motion: self.candidate,
                                        approach_clearance=SimpleNamespace(raised_bounds=lambda *args: (None, [])))
@@ -126,8 +127,8 @@ class _Direct:
         self.approach_calls.append((problem, max_iterations, deadline))
         return self.app
 
-    def plan(self, deadline: Deadline = NO_DEADLINE) -> costed.CostDescent:
-        return costed.plan_costed(self.planner, self.feasibility, None, None, "scan", None, deadline)
+    def plan(self, deadline: Deadline = NO_DEADLINE, grasp_by: Deadline | None = None) -> costed.CostDescent:
+        return costed.plan_costed(self.planner, self.feasibility, None, None, "scan", None, deadline, grasp_by)
 
     def feasibility(self) -> str:
         self.feasibility_built = True
@@ -168,6 +169,19 @@ def test_the_costed_optimum_gets_half_of_a_bounded_budget(monkeypatch):
     d.plan()
     bounded, unbounded = d.approach_calls[0][2], d.approach_calls[1][2]
     assert bounded.remaining_s() == pytest.approx(50.0, abs=0.5) and not unbounded.bounded
+
+
+@pytest.mark.parametrize("braked", [True, False])
+def test_the_grasp_is_due_by_grasp_by_and_the_descent_runs_to_the_deadline(monkeypatch, braked):
+    """A warm plan that a cold one follows (a build point) must find its braked grasp within its share: the costed
+    optimum gets half of that share, the feasibility search all of it; the descent from the grasp found still runs
+    to the plan's deadline."""
+    d = _Direct(monkeypatch, braked=braked)
+    deadline, grasp_by = Deadline.after(100.0), Deadline.after(40.0)
+    d.plan(deadline, grasp_by)
+    assert d.approach_calls[0][2].remaining_s() == pytest.approx(20.0, abs=0.5)
+    assert [s[5] for s in d.searches] == ([] if braked else [grasp_by])
+    assert d.descents == [deadline]
 
 
 def test_a_spent_budget_solves_no_costed_optimum(monkeypatch):

@@ -4,6 +4,7 @@ The planner and verify are stand-ins: this checks the worker's decisions, not th
 
 from __future__ import annotations
 
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -13,6 +14,7 @@ import lut.solve.point_worker as worker
 import planner.verify.verifier as verifier
 from lut.table.point_result import PointResult, PointStatus
 from lut.table.records import from_record
+from planner.deadline import VERIFY_RESERVE_S, Deadline
 from planner.plan_parameters import ApproachParameters, PlanParameters
 
 WARM = PlanParameters(ApproachParameters(np.zeros(3), np.zeros(2), 10.0, np.zeros((3, 7))), np.zeros(4))
@@ -25,9 +27,11 @@ class _Planner:
         self.scenario = SimpleNamespace(phases=SimpleNamespace(max_start_delay_s=60.0))
         self.verdicts = {"warm": warm_ok, "cold": cold_ok}
         self.calls: list[str] = []
+        self.deadlines: list[tuple[Deadline, Deadline | None]] = []
 
-    def plan(self, state, warm_start, deadline):
+    def plan(self, state, warm_start, deadline, grasp_by=None):
         self.calls.append("cold" if warm_start is None else "warm")
+        self.deadlines.append((deadline, grasp_by))
         return self.calls[-1]
 
 
@@ -45,9 +49,9 @@ def stand_ins(monkeypatch):
     return install
 
 
-def _solve(warm, cold_fallback: bool) -> PointResult:
+def _solve(warm, cold_fallback: bool, deadline_at_s: float | None = None) -> PointResult:
     return from_record(worker.solve_point("s.toml", 3, np.array([1.0, 0, 0, 0]), np.radians([0, 0, 4.0]), warm, 0.0,
-                                          cold_fallback=cold_fallback))
+                                          deadline_at_s=deadline_at_s, cold_fallback=cold_fallback))
 
 
 @pytest.mark.parametrize("warm_ok, cold_ok, calls, kept, iterations", [
@@ -67,3 +71,19 @@ def test_without_the_fallback_or_a_warm_start_there_is_one_plan(stand_ins):
     assert _solve(WARM, cold_fallback=False).status is PointStatus.INFEASIBLE and planner.calls == ["warm"]
     planner = stand_ins(False, True)
     assert _solve(None, cold_fallback=True).status is PointStatus.FEASIBLE and planner.calls == ["cold"]
+
+
+def test_a_warm_plan_a_cold_one_follows_must_find_its_grasp_in_its_share_of_the_time(stand_ins):
+    """The warm plan's grasp is due at WARM_SHARE of the time left (its descent may still run to the deadline); the
+    cold plan after it has the whole rest; without a fallback the warm plan has it all."""
+    planner = stand_ins(False, True)
+    at_s = time.monotonic() + 100.0
+    _solve(WARM, cold_fallback=True, deadline_at_s=at_s)
+    (warm_end, warm_grasp_by), (cold_end, cold_grasp_by) = planner.deadlines
+    assert warm_end.at_s == cold_end.at_s == pytest.approx(at_s - VERIFY_RESERVE_S)
+    left_s = at_s - VERIFY_RESERVE_S - time.monotonic()
+    assert warm_grasp_by.remaining_s() == pytest.approx(worker.WARM_SHARE * left_s, abs=1.0)
+    assert cold_grasp_by is None
+    planner = stand_ins(False, True)
+    _solve(WARM, cold_fallback=False, deadline_at_s=at_s)
+    assert planner.deadlines[0][1] is None
