@@ -38,6 +38,20 @@ def stabilization_only(report: VerifyReport) -> bool:
         for c in failed)
 
 
+# the checks of the grasp wrench: a braking too harsh for the grasp it starts from
+BRAKING = frozenset({"grasp_torque", "grasp_force"})
+
+
+def single_cause(report: VerifyReport) -> bool:
+    """True when ``report`` failed only from the grasp on and from one cause: the grasp wrench alone (the arm's
+    motion within its limits and clear), or the arm's path alone (a joint limit, a collision) with the wrench within
+    its limits. A repair must then change one side of the braking and mostly succeeds; one that must make the
+    braking both gentler and take another path mostly fails, at the full :data:`REPAIR_ITERATIONS` (docs/table.md,
+    Query)."""
+    failed = {c.name for c in report.checks.values() if not c.passed}
+    return stabilization_only(report) and (failed <= BRAKING or not failed & BRAKING)
+
+
 def repaired_plan(planner: Planner, state: TargetState, parameters: PlanParameters, report: VerifyReport,
                   deadline: Deadline = NO_DEADLINE) -> tuple[GraspPlan, VerifyReport] | None:
     """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within

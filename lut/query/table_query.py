@@ -12,7 +12,9 @@
    it reached, in process (:mod:`lut.query.stabilization_repair`; source ``repaired``). Otherwise, or if that fails,
    the corners' own plans (carried to the state; the cheapest, then the heaviest first) are re-simulated and verified
    the same way (each repaired so if needed), and the first feasible one is the answer (source ``corner`` or
-   ``repaired``).
+   ``repaired``). A plan that fails from one cause (only the grasp wrench, or only the arm's path) is repaired at
+   once; one whose braking is too harsh while its arm also hits a limit or a body only once every corner was verified
+   (those repairs mostly fail, seconds each).
 5. If that is not feasible either, or refinement was asked for, a warm-started solve runs in a child process
    within what is left of the time budget (killed at it); a feasible refined plan replaces the
    interpolated one. If there is still no feasible plan, a cold solve gets what is left after that.
@@ -29,10 +31,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
-from lut.query.least_violating import violates_less
+from lut.query.least_violating import violates_less, violation
 from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
-from lut.query.stabilization_repair import repaired_plan
+from lut.query.stabilization_repair import repaired_plan, single_cause, stabilization_only
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
 from lut.solve.point_worker import WARM_SHARE
@@ -220,49 +222,84 @@ class TableQuery:
     def table_plan(self, state: TargetState, found: TableAnswer, deadline: Deadline, latency: dict[str, float],
                    refine: bool) -> Attempt:
         """The table's own plan at ``state``: ``found`` re-simulated and verified; unless a refine was asked for and
-        while it is not feasible, its stabilization repaired (:meth:`repaired`), then the corners' own plans
-        (:meth:`corner_plan`). Returns the plan, its report, the corners it came from and its source: the first feasible
-        one, else the least violating."""
+        while it is not feasible, the table's plans repaired (:meth:`repaired`): the nearest point's alone, an
+        interpolation's with its corners' own plans (:meth:`corner_plan`). Returns the plan, its report, the corners
+        it came from and its source: the first feasible one, else the least violating."""
         plan, report = self.simulate_and_verify(state, found.parameters, latency)
+        first = plan, report, found.corners, found.source
         if report.feasible or refine:
-            return plan, report, found.corners, found.source
+            return first
         t0 = time.perf_counter()
+        latency["repair_s"] = 0.0
+        if found.source is QuerySource.INTERPOLATED:
+            best = self.corner_plan(state, found, first, deadline, latency)
+            latency["corners_s"] = time.perf_counter() - t0
+            return best
         fixed = self.repaired(state, found.parameters, report, deadline)
         latency["repair_s"] = time.perf_counter() - t0
-        if fixed is not None:
-            return *fixed, found.corners, QuerySource.REPAIRED
-        best = plan, report, found.corners, found.source
-        if found.source is QuerySource.INTERPOLATED:
-            t0 = time.perf_counter()
-            best = self.corner_plan(state, deadline, best)
-            latency["corners_s"] = time.perf_counter() - t0
-        return best
+        return first if fixed is None else (*fixed, found.corners, QuerySource.REPAIRED)
 
-    def corner_plan(self, state: TargetState, deadline: Deadline, best: Attempt) -> Attempt:
-        """The first of the cell's feasible corners (at most :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`;
-        those at the cell's lowest cost first, each group heaviest first) whose own plan, carried to ``state``'s phase,
-        verifies feasible there, as it is (source ``corner``) or with its stabilization repaired (``repaired``):
-        ``(plan, report, [corner], source)``; if none does in time, the least violating of ``best`` (the interpolated
-        plan's attempt) and the corners' plans tried (:mod:`lut.query.least_violating`).
+    def corner_plan(self, state: TargetState, found: TableAnswer, first: Attempt, deadline: Deadline,
+                    latency: dict[str, float]) -> Attempt:
+        """The interpolated plan (``first``, verified) repaired, or the first of the cell's feasible corners (at most
+        :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`; those at the cell's lowest cost first, each group
+        heaviest first; the interpolation's own corner when it is one corner's plan is not tried twice) whose own
+        plan, carried to ``state``'s phase, verifies feasible there, as it is (source ``corner``) or with its
+        stabilization repaired (``repaired``): ``(plan, report, corners, source)``; if none does in time, the least
+        violating of those made (:mod:`lut.query.least_violating`).
+
+        A plan whose failure has one cause (:func:`~lut.query.stabilization_repair.single_cause`) is repaired at once;
+        one whose braking is too harsh while its arm also hits a limit or a body only once every corner has been
+        verified as it is, fewest failed checks first: those repairs mostly fail, at the full ``REPAIR_ITERATIONS``
+        (seconds each).
 
         Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
         in different families of solutions may collide or miss the grasp.
         """
-        candidates = self.corner_candidates(state)
-        cheap = {c.corner for c in cheapest(candidates)}
+        best, later = first, []
         stage = Deadline.after(CORNER_STAGE_S)
-        for candidate in sorted(candidates, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]:
-            if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S or stage.passed:
-                return best
-            plan, report = self.simulate_and_verify(state, candidate.parameters, {})
-            if report.feasible:
-                return plan, report, [candidate.corner], QuerySource.CORNER
-            fixed = self.repaired(state, candidate.parameters, report, deadline)
+        corners = [c for c in self.corner_candidates(state) if [c.corner] != found.corners]
+        cheap = {c.corner for c in cheapest(corners)}
+        ordered = sorted(corners, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]
+        tries: list[tuple[PlanParameters, list[int], Attempt | None]] = [(found.parameters, found.corners, first)]
+        tries += [(c.parameters, [c.corner], None) for c in ordered]
+        for parameters, used, made in tries:
+            if made is None:  # a corner's own plan, not yet made
+                if self._corners_out_of_time(deadline, stage):
+                    break
+                plan, report = self.simulate_and_verify(state, parameters, {})
+                made = plan, report, used, QuerySource.CORNER
+                if report.feasible:
+                    return made
+            if single_cause(made[1]):
+                fixed = self._timed_repair(state, parameters, made, deadline, latency)
+                if fixed is not None:
+                    return fixed
+            elif stabilization_only(made[1]):
+                later.append((parameters, made))
+            if violates_less(made[1], best[1]):
+                best = made
+        for parameters, made in sorted(later, key=lambda pm: violation(pm[1][1])[0]):
+            if self._corners_out_of_time(deadline, stage):
+                break
+            fixed = self._timed_repair(state, parameters, made, deadline, latency)
             if fixed is not None:
-                return *fixed, [candidate.corner], QuerySource.REPAIRED
-            if violates_less(report, best[1]):
-                best = plan, report, [candidate.corner], QuerySource.CORNER
+                return fixed
         return best
+
+    @staticmethod
+    def _corners_out_of_time(deadline: Deadline, stage: Deadline) -> bool:
+        """True when no more corner may be tried: the corner stage is over, or the solves need what is left."""
+        return stage.passed or deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S
+
+    def _timed_repair(self, state: TargetState, parameters: PlanParameters, made: Attempt, deadline: Deadline,
+                      latency: dict[str, float]) -> Attempt | None:
+        """``made`` (the plan of ``parameters``) repaired (:meth:`repaired`) as ``(plan, report, its corners,
+        "repaired")``, or None; the time it took added to ``latency["repair_s"]``."""
+        t0 = time.perf_counter()
+        fixed = self.repaired(state, parameters, made[1], deadline)
+        latency["repair_s"] += time.perf_counter() - t0
+        return None if fixed is None else (*fixed, made[2], QuerySource.REPAIRED)
 
     def repaired(self, state: TargetState, parameters: PlanParameters, report: VerifyReport,
                  deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:

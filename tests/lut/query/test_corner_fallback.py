@@ -1,8 +1,10 @@
 """A query whose interpolated plan fails verification tries to repair its stabilization, then its heaviest corners'
 own plans (each repaired if need be) before any solve (issue 21): the first that verifies is the answer, the corners
 at the cell's lowest cost are tried first, at most ``CORNER_TRIES`` corners for at most ``CORNER_STAGE_S`` are tried,
-and an asked-for refine skips them all. The planner is replaced by a stand-in whose verdict depends on which
-parameters it is given (and, for a repair, on the plan it repairs)."""
+and an asked-for refine skips them all. A plan failing from one cause after its grasp (the wrench alone, or the arm's
+path alone) is repaired at once, one failing from both only once every corner was verified as it is, fewest failed
+checks first; one failing before its grasp never. The planner is replaced by a stand-in whose verdict depends on
+which parameters it is given (and, for a repair, on the plan it repairs)."""
 
 from __future__ import annotations
 
@@ -18,15 +20,33 @@ from lut.query.result import QuerySource
 from lut.query.table_query import TableQuery
 from lut.table.point_result import PointResult, PointStatus
 from planner.model.target import TargetState
+from planner.verify.checks import CheckResult
 
 GOLDEN = Path(__file__).resolve().parents[2] / "data" / "ci_golden.h5"
 STATE = TargetState(np.array([0.9996573249755573, 0, 0, 0.026176948307873]), np.radians([0.0, 0.0, 3.8]))
 
 
+T_GRASP_S = 50.0
+# what a stand-in plan fails: (check, time of its worst value [s]) — its braking alone, its arm's path alone, both
+# after the grasp (two or three checks), or its approach
+FAILURES = {"braking": (("grasp_torque", 60.0),),
+            "path": (("collision", 70.0), ("joint_position", 80.0)),
+            "arm": (("grasp_torque", 60.0), ("collision", 70.0)),
+            "arm3": (("grasp_torque", 60.0), ("collision", 70.0), ("joint_position", 80.0)),
+            "approach": (("grasp_torque", 60.0), ("collision", 30.0))}
+
+
 @dataclass
 class _Report:
     feasible: bool
-    checks: dict = field(default_factory=dict)  # no check: every infeasible stand-in violates alike
+    checks: dict = field(default_factory=dict)
+    t_grasp_s: float = T_GRASP_S
+
+
+def _report(feasible: bool, failure: str) -> _Report:
+    """A stand-in verification: feasible, or failing the checks of ``FAILURES[failure]`` (each by the same excess)."""
+    failed = () if feasible else FAILURES[failure]
+    return _Report(feasible, {name: CheckResult(name, 2.0, 1.0, -1.0, False, "-", "", t_s) for name, t_s in failed})
 
 
 @pytest.fixture(scope="module")
@@ -35,10 +55,12 @@ def opened() -> TableQuery:
 
 
 def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: set[int],
-              repairable: frozenset = frozenset(), costs: dict[int, float] | None = None) -> list:
+              repairable: frozenset = frozenset(), costs: dict[int, float] | None = None,
+              failures: dict | None = None) -> list:
     """Corners with these weights (and costs, default 0); a plan verifies iff it is one of ``feasible``'s own, its
-    repair iff it is one of ``repairable``'s ("interpolated" for the interpolated plan). Returns the tried order."""
-    costs = costs or {}
+    repair iff it is one of ``repairable``'s ("interpolated" for the interpolated plan); a plan that fails fails
+    ``failures``' kind for it (default: its braking alone). Returns the tried order."""
+    costs, failures = costs or {}, failures or {}
     candidates = [Candidate(c, w, tq.points[c].parameters, costs.get(c, 0.0)) for c, w in weights.items()]
     owner = {id(c.parameters): c.corner for c in candidates}
     tried: list = []
@@ -46,12 +68,12 @@ def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: 
     def simulate_and_verify(state, parameters, latency):
         corner = owner.get(id(parameters), "interpolated")
         tried.append(corner)
-        return object(), _Report(corner in feasible)
+        return object(), _report(corner in feasible, failures.get(corner, "braking"))
 
     def repaired(state, parameters, report, deadline):
         corner = owner.get(id(parameters), "interpolated")
         tried.append(f"repair {corner}")
-        return (object(), _Report(True)) if corner in repairable else None
+        return (object(), _report(True, "")) if corner in repairable else None
 
     def refine(state, warm, budget_s):
         tried.append("refine" if warm is not None else "cold")
@@ -91,14 +113,16 @@ def test_no_corner_is_tried_once_the_corner_stage_has_taken_its_time(opened, mon
 def test_corners_at_the_cells_lowest_cost_are_tried_first_and_alone_averaged(opened, monkeypatch):
     """An optimal table's corner left in a local minimum (Eq. 16 at 0.3 m² where its neighbours hold ~1e-9 m²) is
     neither averaged nor tried before the optimal corners, however heavy: the query would inherit its cost."""
-    costs = {0: 1e-9, 1: 0.3, 2: 2e-9}
-    same = opened.points[0].parameters  # one meeting time: only the costs can split the corners
-    alike = [Candidate(c, w, same, costs[c]) for c, w in {0: 0.1, 1: 0.5, 2: 0.4}.items()]
+    costs = {0: 0.3, 1: 1e-9, 2: 2e-9}
+    weights = {0: 0.5, 1: 0.1, 2: 0.4}
+    same = opened.points[1].parameters  # one meeting time: only the costs can split the corners
+    alike = [Candidate(c, w, same, costs[c]) for c, w in weights.items()]
     monkeypatch.setattr(opened, "corner_candidates", lambda state: alike)
-    assert sorted(opened.interpolate(STATE).corners) == [0, 2]
-    tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0, 1, 2}, costs=costs)
+    assert sorted(opened.interpolate(STATE).corners) == [1, 2]
+    tried = _stand_in(opened, monkeypatch, weights, feasible={0, 1, 2}, costs=costs)
+    assert sorted(opened.interpolate(STATE).corners) == [1, 2]  # their own meeting times agree as well
     res = opened.query(STATE, budget_s=100.0)
-    assert tried == ["interpolated", "repair interpolated", 2]  # the cheap ones by weight: 2 (0.4) before 0 (0.1)
+    assert tried == ["interpolated", "repair interpolated", 2]  # the cheap ones by weight: 2 (0.4) before 1 (0.1)
     assert res.corners_used == [2] and res.source is QuerySource.CORNER
 
 
@@ -137,7 +161,37 @@ def test_a_repaired_interpolation_is_the_answer_before_any_corner(opened, monkey
 
 
 def test_a_corner_is_repaired_when_it_fails_as_it_is(opened, monkeypatch):
-    tried = _stand_in(opened, monkeypatch, {0: 0.2, 1: 0.8}, feasible=set(), repairable=frozenset({1}))
+    tried = _stand_in(opened, monkeypatch, {2: 0.2, 1: 0.8}, feasible=set(), repairable=frozenset({1}))
     res = opened.query(STATE, budget_s=100.0)
     assert tried == ["interpolated", "repair interpolated", 1, "repair 1"]
     assert res.source is QuerySource.REPAIRED and res.corners_used == [1]
+
+
+def test_a_plan_failing_from_both_causes_is_repaired_once_every_corner_was_verified(opened, monkeypatch):
+    """Repairs of a plan whose braking is too harsh while its arm hits a limit or a body mostly fail, at seconds each:
+    a corner failing from one cause (its wrench, or its path) is verified and repaired before them, and they go
+    fewest failed checks first."""
+    failures = {"interpolated": "arm", 1: "arm3", 2: "arm", 0: "braking", 3: "path"}
+    tried = _stand_in(opened, monkeypatch, {0: 0.2, 1: 0.4, 2: 0.3, 3: 0.1}, feasible=set(),
+                      repairable=frozenset({2}), failures=failures)
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", 1, 2, 0, "repair 0", 3, "repair 3", "repair interpolated", "repair 2"]
+    assert res.source is QuerySource.REPAIRED and res.corners_used == [2]
+
+
+def test_a_plan_failing_before_its_grasp_is_never_repaired(opened, monkeypatch):
+    failures = {"interpolated": "approach", 0: "approach", 1: "approach"}
+    tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible=set(), repairable=frozenset({0, 1}),
+                      failures=failures)
+    opened.query(STATE, budget_s=100.0)
+    assert not [t for t in tried if str(t).startswith("repair")] and tried[-2:] == ["refine", "cold"]
+
+
+def test_the_interpolations_own_corner_is_not_tried_again(opened, monkeypatch):
+    """An interpolation of one corner (the cell's only one at its lowest cost) is that corner's plan: verifying and
+    repairing it again would repeat the same seconds."""
+    costs = {0: 1e-9, 1: 0.3}
+    tried = _stand_in(opened, monkeypatch, {0: 0.6, 1: 0.4}, feasible={0, 1}, costs=costs,
+                      failures={"interpolated": "approach"})
+    res = opened.query(STATE, budget_s=100.0)
+    assert res.corners_used == [1] and tried == ["interpolated", 1]

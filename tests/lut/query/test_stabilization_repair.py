@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.query.stabilization_repair import BEFORE_THE_GRASP, stabilization_only
+from lut.query.stabilization_repair import BEFORE_THE_GRASP, single_cause, stabilization_only
 from lut.query.table_query import TableQuery
 from planner.deadline import Deadline
 from planner.plan_parameters import PlanParameters
@@ -41,6 +41,20 @@ def _report(*failed: tuple[str, float | None]) -> SimpleNamespace:
 ])
 def test_only_failures_from_the_grasp_on_are_repairable(failed, expected):
     assert stabilization_only(_report(*failed)) is expected
+
+
+@pytest.mark.parametrize(("failed", "expected"), [
+    ((("grasp_torque", 60.0),), True),  # the braking alone too harsh
+    ((("grasp_force", 60.0), ("grasp_torque", 61.0)), True),  # the wrench alone, both of its parts
+    ((("joint_position", 70.0), ("joint_velocity", 71.0)), True),  # the arm's path alone
+    ((("collision", 70.0),), True),
+    ((("grasp_torque", 60.0), ("collision", 70.0)), False),  # both causes at once
+    ((("grasp_force", 60.0), ("joint_velocity", 90.0)), False),
+    ((("grasp_torque", 60.0), ("joint_position", 30.0)), False),  # a joint limit before the grasp: no repair at all
+    ((), False),
+])
+def test_a_single_cause_is_the_wrench_alone_or_the_path_alone(failed, expected):
+    assert single_cause(_report(*failed)) is expected
 
 
 @pytest.fixture(scope="module")
