@@ -256,29 +256,26 @@ class TableQuery:
         Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
         in different families of solutions may collide or miss the grasp.
         """
-        best, later = first, []
-        stage = Deadline.after(CORNER_STAGE_S)
+        later: list[tuple[PlanParameters, Attempt]] = []  # the both-cause plans, repaired last
+        best, stage = first, Deadline.after(CORNER_STAGE_S)
+        fixed = self._repair_now_or_later(state, found.parameters, first, deadline, latency, later)
+        if fixed is not None:
+            return fixed
         corners = [c for c in self.corner_candidates(state) if [c.corner] != found.corners]
         cheap = {c.corner for c in cheapest(corners)}
-        ordered = sorted(corners, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]
-        tries: list[tuple[PlanParameters, list[int], Attempt | None]] = [(found.parameters, found.corners, first)]
-        tries += [(c.parameters, [c.corner], None) for c in ordered]
-        for parameters, used, made in tries:
-            if made is None:  # a corner's own plan, not yet made
-                if self._corners_out_of_time(deadline, stage):
-                    break
-                plan, report = self.simulate_and_verify(state, parameters, {})
-                made = plan, report, used, QuerySource.CORNER
-                if report.feasible:
-                    return made
-            if single_cause(made[1]):
-                fixed = self._timed_repair(state, parameters, made, deadline, latency)
-                if fixed is not None:
-                    return fixed
-            elif stabilization_only(made[1]):
-                later.append((parameters, made))
-            if violates_less(made[1], best[1]):
+        for candidate in sorted(corners, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]:
+            if self._corners_out_of_time(deadline, stage):
+                break
+            plan, report = self.simulate_and_verify(state, candidate.parameters, {})
+            made = plan, report, [candidate.corner], QuerySource.CORNER
+            if report.feasible:
+                return made
+            fixed = self._repair_now_or_later(state, candidate.parameters, made, deadline, latency, later)
+            if fixed is not None:
+                return fixed
+            if violates_less(report, best[1]):
                 best = made
+        # fewest failed checks first; the count alone, so that ties keep the order they were tried in
         for parameters, made in sorted(later, key=lambda pm: violation(pm[1][1])[0]):
             if self._corners_out_of_time(deadline, stage):
                 break
@@ -286,6 +283,17 @@ class TableQuery:
             if fixed is not None:
                 return fixed
         return best
+
+    def _repair_now_or_later(self, state: TargetState, parameters: PlanParameters, made: Attempt, deadline: Deadline,
+                             latency: dict[str, float], later: list[tuple[PlanParameters, Attempt]]) -> Attempt | None:
+        """``made`` (the failed plan of ``parameters``) repaired now when it fails from one cause
+        (:func:`~lut.query.stabilization_repair.single_cause`): the repaired attempt, or None; appended to ``later``
+        when it fails from both after its grasp; left alone when it fails before its grasp."""
+        if single_cause(made[1]):
+            return self._timed_repair(state, parameters, made, deadline, latency)
+        if stabilization_only(made[1]):
+            later.append((parameters, made))
+        return None
 
     @staticmethod
     def _corners_out_of_time(deadline: Deadline, stage: Deadline) -> bool:

@@ -179,6 +179,16 @@ def test_a_plan_failing_from_both_causes_is_repaired_once_every_corner_was_verif
     assert res.source is QuerySource.REPAIRED and res.corners_used == [2]
 
 
+def test_a_plan_repaired_last_is_not_repaired_once_the_corner_stage_has_taken_its_time(opened, monkeypatch):
+    """The deferred repairs belong to the corner stage: past it, the solves get the time, even for the interpolated
+    plan's own repair."""
+    monkeypatch.setattr(tq_module, "CORNER_STAGE_S", 0.0)
+    tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible=set(), repairable=frozenset({"interpolated"}),
+                      failures={"interpolated": "arm"})
+    opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", "refine", "cold"]
+
+
 def test_a_plan_failing_before_its_grasp_is_never_repaired(opened, monkeypatch):
     failures = {"interpolated": "approach", 0: "approach", 1: "approach"}
     tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible=set(), repairable=frozenset({0, 1}),
