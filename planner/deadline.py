@@ -14,9 +14,11 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Deadline:
-    """The instant ``at_s`` [s, ``time.monotonic()``] a time budget ends; ``inf`` never does."""
+    """The instant ``at_s`` [s, ``time.monotonic()``] a time budget ends; ``inf`` never does. ``what`` names the
+    budget in the notes of a plan it cut short."""
 
     at_s: float = math.inf
+    what: str = "the plan's time budget"
 
     @classmethod
     def after(cls, budget_s: float | None, since_s: float | None = None) -> Deadline:
@@ -39,9 +41,10 @@ class Deadline:
         """True once the deadline is behind us."""
         return self.bounded and time.monotonic() >= self.at_s
 
-    def earlier(self, seconds: float) -> Deadline:
-        """The deadline ``seconds`` [s] sooner: room kept back for what must follow (verification, export)."""
-        return Deadline(self.at_s - seconds)
+    def earlier(self, seconds: float, what: str | None = None) -> Deadline:
+        """The deadline ``seconds`` [s] sooner: room kept back for what must follow (verification, export), or a
+        share of the budget named ``what`` (default: this one's name)."""
+        return Deadline(self.at_s - seconds, self.what if what is None else what)
 
 
 NO_DEADLINE = Deadline()

@@ -234,7 +234,7 @@ class GraspSearch:
                                                                                      StabilizationSolution]:
         """``(candidate, stab)`` as the plan's grasp, with a note when the deadline cut the search short."""
         if self.deadline.passed and not stab.success:
-            self.notes.append(f"the plan's time budget ran out ({stab.status} after {stab.iterations} stabilization "
+            self.notes.append(f"{self.deadline.what} ran out ({stab.status} after {stab.iterations} stabilization "
                               f"iterations): the plan is the grasp at t = {candidate.grasp_time_s:.1f} s as far as it "
                               "was solved")
         return candidate, stab

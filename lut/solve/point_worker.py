@@ -108,7 +108,8 @@ def warm_grasp_deadline(deadline: Deadline) -> Deadline:
     is left of ``deadline`` (unbounded stays unbounded)."""
     if not deadline.bounded:
         return deadline
-    return deadline.earlier((1.0 - WARM_SHARE) * max(deadline.remaining_s(), 0.0))
+    return deadline.earlier((1.0 - WARM_SHARE) * max(deadline.remaining_s(), 0.0),
+                            "the warm plan's share of the point's time (a cold plan follows)")
 
 
 def verified_plan(planner: Planner, point: int, state: TargetState, warm_start: PlanParameters | None,

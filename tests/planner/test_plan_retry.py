@@ -207,6 +207,7 @@ class _SwitchedDeadline:
 
     bounded = True
     passed = False
+    what = "the plan's time budget"
 
 
 def test_past_the_deadline_no_further_grasp_is_tried(planner_II, monkeypatch):
@@ -228,7 +229,24 @@ def test_past_the_deadline_no_further_grasp_is_tried(planner_II, monkeypatch):
     # no other stabilization, no whole re-solve of the first grasp
     assert len(calls) == 1 and len(approaches) == 1 and approaches[0]["deadline"] is deadline
     assert plan.approach.start_guess == 0 and plan.t_grasp == pytest.approx(calls[0][2])
-    assert not plan.solver_ok and "time budget ran out" in plan.notes[-1]
+    assert not plan.solver_ok and plan.notes[-1].startswith("the plan's time budget ran out")
+
+
+def test_a_plan_cut_by_its_share_of_the_time_names_the_share(planner_II, monkeypatch):
+    sc, planner = planner_II
+    calls: list = []
+    grasp_by = _SwitchedDeadline()
+    grasp_by.what = "the warm plan's share of the point's time"
+    failing = _stand_in(calls, NEVER)
+
+    def stabilize_then_run_out_of_time(self, *args):
+        grasp_by.passed = True
+        return failing(self, *args)
+
+    monkeypatch.setattr(GraspCandidate, "stabilize", stabilize_then_run_out_of_time)
+    plan = planner.plan(sc.target_state.as_state(), grasp_by=grasp_by)
+    # the plan's own budget did not run out: the note names what did
+    assert len(calls) == 1 and plan.notes[-1].startswith("the warm plan's share of the point's time ran out")
 
 
 def test_a_plan_begun_past_its_deadline_is_still_a_plan_to_verify(planner_II, monkeypatch):

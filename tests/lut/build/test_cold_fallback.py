@@ -83,6 +83,8 @@ def test_a_warm_plan_a_cold_one_follows_must_find_its_grasp_in_its_share_of_the_
     assert warm_end.at_s == cold_end.at_s == pytest.approx(at_s - VERIFY_RESERVE_S)
     left_s = at_s - VERIFY_RESERVE_S - time.monotonic()
     assert warm_grasp_by.remaining_s() == pytest.approx(worker.WARM_SHARE * left_s, abs=1.0)
+    # a plan cut by the share says so, not that the point's budget ran out
+    assert "share" in warm_grasp_by.what and warm_end.what == "the plan's time budget"
     assert cold_grasp_by is None
     planner = stand_ins(False, True)
     _solve(WARM, cold_fallback=False, deadline_at_s=at_s)
