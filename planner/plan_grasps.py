@@ -40,6 +40,7 @@ from planner.phases.stabilization import (
 )
 from planner.phases.stabilization_solve import solve_stabilization
 from planner.phases.tracking import TrackingResult
+from planner.phases.tracking_clearance import tracking_dip
 from planner.phases.tracking_profile import TRACKING_NODES, node_segment
 from planner.plan_parameters import ApproachParameters, PlanParameters
 from planner.plan_samples import PhaseSamples
@@ -133,9 +134,15 @@ class GraspCandidate:
     grasp: GraspState
     T_body_grasp_used: Array  # (4, 4)
     compound: FreeFloatingModel  # the compound chaser + target of this grasp
-    # False when the approach failed, or its tracking asks for more than the tolerated joint rates (or dips below
-    # its clearance between via points) and the re-solve did not mend it: verify refuses such a grasp whatever braking
-    approach_holds: bool = True
+    # why the approach does not hold ("" when it does): verify refuses such a grasp whatever its braking
+    unheld_because: str = ""
+
+    @property
+    def approach_holds(self) -> bool:
+        """False when the approach failed, or its tracking asks for more than the tolerated joint rates (or dips
+        below its clearance between via points) and the re-solve did not mend it, or the tracking IK's arm dips below
+        its clearance."""
+        return not self.unheld_because
 
     @property
     def grasp_time_s(self) -> float:
@@ -252,10 +259,8 @@ class GraspSearch:
 
     def _note_unheld(self, candidate: GraspCandidate) -> None:
         """Say in the plan's notes that ``candidate`` is not braked: its approach does not hold."""
-        why = (f"its approach failed ({candidate.app.status})" if not candidate.app.success else
-               f"its tracking asks {candidate.tracking.peak_rate_demand:.3g}× a joint's rate limit, or its approach "
-               "dips below its clearance between via points, after its re-solve")
-        self.notes.append(f"the grasp at t = {candidate.grasp_time_s:.1f} s is not braked: {why}; trying another grasp")
+        self.notes.append(f"the grasp at t = {candidate.grasp_time_s:.1f} s is not braked: {candidate.unheld_because}; "
+                          "trying another grasp")
 
     def _another_grasp_remains(self) -> bool:
         """True when a cold plan has another grasp to try: a scanned guess left or another base offset."""
@@ -368,8 +373,23 @@ class GraspSearch:
                 mended = False
                 break
             app = accumulated(retry, app)
-        holds = mended and app.success and tr.peak_rate_demand <= RATE_DEMAND_TOLERATED
-        return replace(self.planner.candidate_from(app, samples, tr, self.motion), approach_holds=holds)
+        return replace(self.planner.candidate_from(app, samples, tr, self.motion),
+                       unheld_because=self._why_unheld(app, tr, mended))
+
+    def _why_unheld(self, app: ApproachSolution, tr: TrackingResult, mended: bool) -> str:
+        """Why the grasp ``app`` and its tracking ``tr`` reach does not hold, "" when it does; ``mended``: False when a
+        re-solve failed and the first approach was kept."""
+        if not app.success:
+            return f"its approach failed ({app.status})"
+        if tr.peak_rate_demand > RATE_DEMAND_TOLERATED:
+            return f"its tracking asks {tr.peak_rate_demand:.3g}× a joint's rate limit after its re-solve"
+        if not mended:
+            return "its approach dips below its clearance between via points after its re-solve"
+        dip = tracking_dip(self.planner.approach_clearance, tr, self.motion)
+        if dip is not None:
+            return (f"its tracking IK's arm dips below its clearance ({dip.pair} {dip.distance_m:.4f} m, clearance "
+                    f"{dip.clearance_m:.3g} m, {dip.t_s:.2f} s into the tracking at t = {tr.t[0] + dip.t_s:.2f} s)")
+        return ""
 
     def _tighten_rates(self, tr: TrackingResult) -> None:
         """Scale the rate bounds of the tracking segment where ``tr``'s demand peaked by the excess, and say so."""

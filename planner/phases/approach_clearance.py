@@ -58,9 +58,14 @@ class ApproachClearance:
 
     def distances(self, samples: PhaseSamples, start_delay_s: float, motion: TargetMotion) -> Array:
         """Every pair's distance [m] at every sample of the approach ``(n, pairs)``."""
-        R_target, _ = motion.body_pose(start_delay_s + samples.t)
-        n = len(samples.t)
-        stacked = self._poses.map(n)(samples.x_base.T, samples.q.T, np.hstack(R_target))
+        return self.distances_at(start_delay_s + samples.t, samples.q, samples.x_base, motion)
+
+    def distances_at(self, t_s: Array, q: Array, x_base: Array, motion: TargetMotion) -> Array:
+        """Every pair's distance [m] ``(n, pairs)`` with the chaser at joints ``q`` ``(n, 7)`` [rad] and base poses
+        ``x_base`` ``(n, 7)`` and the target where ``motion`` has it at ``t_s`` ``(n,)`` [s since the observation]."""
+        R_target, _ = motion.body_pose(t_s)
+        n = len(t_s)
+        stacked = self._poses.map(n)(x_base.T, q.T, np.hstack(R_target))
         blocks = np.asarray(stacked).T.reshape(n, -1, 12)
         return self.problem.scene.sweep(frame_poses(blocks, self.problem.body_order)).distance_m
 

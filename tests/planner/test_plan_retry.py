@@ -20,6 +20,7 @@ import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
 from planner.deadline import Deadline
 from planner.nlp.outcome import SolveOutcome
+from planner.phases.approach_clearance import ClearanceDip
 from planner.phases.approach_guess import angles_apart
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
@@ -337,7 +338,7 @@ def _first_grasp_unheld(monkeypatch) -> None:
 
     def marked(self, app):
         out = candidate(self, app)
-        return replace(out, approach_holds=False) if out.app.start_guess == 0 else out
+        return replace(out, unheld_because="a stand-in that does not hold") if out.app.start_guess == 0 else out
 
     monkeypatch.setattr(plan_grasps_module.GraspSearch, "_candidate", marked)
 
@@ -383,3 +384,17 @@ def test_a_tracking_that_asks_too_much_after_a_failed_re_solve_does_not_hold(pla
     monkeypatch.setattr(search, "_solve_approach", lambda *a, **k: replace(app, success=False))
     unheld = search._candidate(app)
     assert not unheld.approach_holds and "the re-solve failed" in search.notes[-1]
+
+
+def test_a_tracking_whose_arm_dips_below_its_clearance_does_not_hold(planner_II, monkeypatch):
+    """No NLP row looks at the tracking IK's arm before the first tracking node: a grasp whose tracking sweeps a link
+    into the target is not one to brake (a scenario II tumble: link 2 12.5 cm into the panel, braked and refused)."""
+    sc, planner = planner_II
+    state = sc.target_state.as_state()
+    scan = approach_guess_module.ScanOnDemand(sc, planner.approach.spline, state, GRASP_GUESSES)
+    search = plan_grasps_module.GraspSearch(planner, state, None, scan, planner.motion(state))
+    app = search._solve_approach(None)
+    monkeypatch.setattr(plan_grasps_module, "tracking_dip", lambda *a: ClearanceDip("link2-target", 1.82, -0.125, 0.02))
+    unheld = search._candidate(app)
+    assert not unheld.approach_holds
+    assert "tracking IK's arm dips" in unheld.unheld_because and "link2-target -0.1250 m" in unheld.unheld_because
