@@ -13,15 +13,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.output.plan_file import load_plan
-from lut.output.preview_geometry import chaser_body_poses, pose_matrices
-from planner.collision.layout import TARGET_BODY, scene_layout
 from planner.config.scenario import load_scenario
 from planner.model.target import TargetState
 from planner.phases.approach import ApproachProblem
 from planner.phases.approach_clearance import DIP_TRIGGER_M, ApproachClearance
 from planner.plan_samples import PhaseSamples
-from planner.verify.collision import sweep_pairs
+from tests.support.stored_plan import stored_phase, verify_engine_distances
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
@@ -32,32 +29,14 @@ def clearance() -> ApproachClearance:
     return ApproachClearance(ApproachProblem(load_scenario(SCENARIO_II)))
 
 
-def _homogeneous(T: np.ndarray) -> np.ndarray:
-    out = np.zeros((*T.shape[:-2], 4, 4))
-    out[..., :3, :] = T
-    out[..., 3, 3] = 1.0
-    return out
-
-
 def test_distances_equal_verify_engine_pair_by_pair(clearance):
-    doc = load_plan(ROOT / "tests" / "data" / "plan_II.json.gz")
     sc = clearance.problem.scenario
-    s = {k: np.asarray(v, dtype=float) for k, v in doc["samples"].items() if k != "closest_pair"}
-    start, end = doc["phases"]["approach"]
-    rows = (s["t"] >= start - 1e-9) & (s["t"] <= end + 1e-9)
-    samples = PhaseSamples(s["t"][rows] - start, s["q"][rows], s["qd"][rows],
-                           np.hstack([s["base_position"][rows], s["base_wxyz"][rows]]))
-    state = TargetState(np.asarray(doc["target"]["attitude_wxyz"]), np.asarray(doc["target"]["omega_body_rad_s"]))
-    ours = clearance.distances(samples, start, sc.target.motion(state, end + 1.0))
-
-    chaser = _homogeneous(chaser_body_poses(sc.robot, s["base_position"][rows], s["base_wxyz"][rows], s["q"][rows]))
-    frames = {name: chaser[:, i] for i, name in enumerate(sc.robot.body_names)}
-    frames[TARGET_BODY] = _homogeneous(pose_matrices(s["target_position"][rows], s["target_wxyz"][rows]))
-    layout = scene_layout(sc.robot, sc.target)
-    theirs = sweep_pairs(layout, frames).distance_m
-    order = [layout.pair_names().index(f"{a}-{b}") for a, b in clearance.problem.scene.pairs]
-    assert ours.shape == (rows.sum(), 37)
-    assert np.max(np.abs(ours - theirs[:, order])) < 1e-6
+    phase = stored_phase(sc, "approach")
+    samples = PhaseSamples(phase.t - phase.start_s, phase.q, phase.qd, phase.x_base)
+    ours = clearance.distances(samples, phase.start_s, phase.motion)
+    theirs = verify_engine_distances(sc, phase, clearance.problem.scene.pairs)
+    assert ours.shape == (phase.t.size, 37)
+    assert np.max(np.abs(ours - theirs)) < 1e-6
 
 
 def _dipped(clearance: ApproachClearance, monkeypatch, pair: int, t_dip: float, d_dip: float):

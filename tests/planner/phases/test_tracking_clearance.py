@@ -13,16 +13,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.output.plan_file import load_plan
-from lut.output.preview_geometry import chaser_body_poses, pose_matrices
 from planner.collision.contact_rule import TRACKING, closed_backoff_m, required_clearance_m
-from planner.collision.layout import TARGET_BODY, scene_layout
+from planner.collision.layout import scene_layout
 from planner.config.scenario import load_scenario
-from planner.model.target import TargetState
 from planner.phases.approach import ApproachProblem
 from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.tracking_clearance import tracking_dip
-from planner.verify.collision import sweep_pairs
+from tests.support.stored_plan import stored_phase, verify_engine_distances
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
@@ -34,38 +31,19 @@ def clearance() -> ApproachClearance:
     return ApproachClearance(ApproachProblem(load_scenario(SCENARIO_II)))
 
 
-def _homogeneous(T: np.ndarray) -> np.ndarray:
-    out = np.zeros((*T.shape[:-2], 4, 4))
-    out[..., :3, :] = T
-    out[..., 3, 3] = 1.0
-    return out
-
-
 def test_a_stored_feasible_plans_tracking_keeps_its_clearance_as_verifys_engine_measures_it(clearance):
-    doc = load_plan(ROOT / "tests" / "data" / "plan_II.json.gz")
     sc = clearance.problem.scenario
-    s = {k: np.asarray(v, dtype=float) for k, v in doc["samples"].items() if k != "closest_pair"}
-    start, end = doc["phases"]["tracking"]
-    rows = (s["t"] >= start - 1e-9) & (s["t"] <= end + 1e-9)
-    tr = SimpleNamespace(t=s["t"][rows], q=s["q"][rows], x_base=np.hstack([s["base_position"][rows],
-                                                                          s["base_wxyz"][rows]]))
-    state = TargetState(np.asarray(doc["target"]["attitude_wxyz"]), np.asarray(doc["target"]["omega_body_rad_s"]))
-    motion = sc.target.motion(state, end + 1.0)
-    assert tracking_dip(clearance, tr, motion) is None
+    phase = stored_phase(sc, "tracking")
+    assert tracking_dip(clearance, phase, phase.motion) is None
     # the same rule on verify's engine and pinocchio's kinematics: the plan's tracking is clear there too, and the
     # two engines agree on every distance
-    chaser = _homogeneous(chaser_body_poses(sc.robot, s["base_position"][rows], s["base_wxyz"][rows], s["q"][rows]))
-    frames = {name: chaser[:, i] for i, name in enumerate(sc.robot.body_names)}
-    frames[TARGET_BODY] = _homogeneous(pose_matrices(s["target_position"][rows], s["target_wxyz"][rows]))
-    layout = scene_layout(sc.robot, sc.target)
-    order = [layout.pair_names().index(f"{a}-{b}") for a, b in clearance.problem.scene.pairs]
-    theirs = sweep_pairs(layout, frames).distance_m[:, order]
-    ours = clearance.distances_at(tr.t, tr.q, tr.x_base, motion)
-    assert np.max(np.abs(ours - theirs)) < 1e-6
-    required = np.array([required_clearance_m(clearance.problem.scene.pairs, layout.gripper_handle,
-                                              sc.limits.collision_margin_m, TRACKING,
-                                              closed_backoff_m(sc.approach.pregrasp_backoff_m, t - start,
-                                                               sc.phases.tracking_s)) for t in tr.t])
+    pairs = clearance.problem.scene.pairs
+    theirs = verify_engine_distances(sc, phase, pairs)
+    assert np.max(np.abs(clearance.distances_at(phase.t, phase.q, phase.x_base, phase.motion) - theirs)) < 1e-6
+    handle = scene_layout(sc.robot, sc.target).gripper_handle
+    required = np.array([required_clearance_m(pairs, handle, sc.limits.collision_margin_m, TRACKING,
+                                              closed_backoff_m(sc.approach.pregrasp_backoff_m, t - phase.start_s,
+                                                               sc.phases.tracking_s)) for t in phase.t])
     assert (theirs >= required).all()
 
 
