@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
 from planner.deadline import NO_DEADLINE, Deadline
+from planner.grasp_candidate import GraspCandidate
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach import ApproachProblem, ApproachSolution
@@ -39,7 +40,6 @@ from planner.plan_grasps import (
     RATE_DEMAND_TOLERATED,
     STABILIZATION_BUDGET,
     TIGHTENING_ROUNDS,
-    GraspCandidate,
     GraspSearch,
     approach_retry_budget,
 )

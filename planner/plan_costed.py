@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.deadline import Deadline
+from planner.grasp_candidate import GraspCandidate, PhasePlanner
 from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach_guess import ScanOnDemand
 from planner.phases.approach_solve import (
@@ -34,9 +35,7 @@ from planner.plan_grasps import (
     RATE_DEMAND_TOLERATED,
     SCREEN_BUDGET,
     STABILIZATION_BUDGET,
-    GraspCandidate,
     GraspSearch,
-    PhasePlanner,
     untightened_speed_scale,
 )
 from planner.plan_parameters import PlanParameters
