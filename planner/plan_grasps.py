@@ -35,6 +35,12 @@ from planner.phases.tracking_clearance import tracking_dip
 from planner.phases.tracking_profile import TRACKING_NODES, node_segment
 from planner.plan_parameters import ApproachParameters, PlanParameters
 from planner.plan_samples import PhaseSamples
+from planner.verify.checks import (
+    GRASP_ANGULAR_VELOCITY_TOL_RAD_S,
+    GRASP_ORIENTATION_TOL_RAD,
+    GRASP_POSITION_TOL_M,
+    GRASP_VELOCITY_TOL_M_S,
+)
 
 Array = NDArray[np.float64]
 
@@ -42,6 +48,9 @@ TIGHTENING_ROUNDS = 2
 # the IK's rate cap absorbs a demand up to this × the limit (capped, the feedback still meets the grasp far
 # inside verify's thresholds); beyond it the lag grows and the approach is re-solved instead
 RATE_DEMAND_TOLERATED = 1.25
+# a tracking still asking for more after its re-solve holds if, capped, it met the grasp within this fraction of
+# verify's grasp tolerances (scenario II tumbles at 1.34-1.69× met it within 0.02-0.39 of them)
+GRASP_MET_FRACTION = 0.5
 TIGHTENING_MARGIN = 0.97  # a tightened rate bound sits this far below what the IK asked for
 # a cold plan whose stabilization fails tries the grasps reached from the approach's next scanned guesses, up
 # to this many guesses in all: scenario II's grasps are mostly unbrakeable within ±10 N·m (screened out), and a
@@ -87,6 +96,16 @@ def other_base_offsets(scenario: Scenario, first_m: Array) -> list[Array]:
             for z in np.unique(np.linspace(z_lo, z_hi, BASE_OFFSETS_PER_AXIS))]
     away = [b for b in grid if np.linalg.norm(b - first_m) >= BASE_OFFSET_GAP_M]
     return sorted(away, key=lambda b: -float(np.linalg.norm(b - first_m)))
+
+
+def met_grasp(tr: TrackingResult) -> bool:
+    """True when the tracking ``tr`` met the grasp within :data:`GRASP_MET_FRACTION` of verify's grasp tolerances
+    (position, orientation, relative velocity and angular velocity at the grasp instant)."""
+    errors = (tr.position_error_m, tr.orientation_error_rad, tr.relative_velocity_m_s,
+              tr.relative_angular_velocity_rad_s)
+    tolerances = (GRASP_POSITION_TOL_M, GRASP_ORIENTATION_TOL_RAD, GRASP_VELOCITY_TOL_M_S,
+                  GRASP_ANGULAR_VELOCITY_TOL_RAD_S)
+    return all(e <= GRASP_MET_FRACTION * tol for e, tol in zip(errors, tolerances, strict=True))
 
 
 def approach_retry_budget(first_iterations: int) -> int:
@@ -295,16 +314,22 @@ class GraspSearch:
                 break
             app = accumulated(retry, app)
         return replace(self.planner.candidate_from(app, samples, tr, self.motion),
-                       unheld_because=self._why_unheld(app, tr, mended))
+                       unheld_because=self._why_unheld(app, samples, tr, mended))
 
-    def _why_unheld(self, app: ApproachSolution, tr: TrackingResult, mended: bool) -> str:
-        """Why the grasp ``app`` and its tracking ``tr`` reach does not hold, "" when it does; ``mended``: False when a
-        re-solve failed and the first approach was kept."""
+    def _why_unheld(self, app: ApproachSolution, samples: PhaseSamples, tr: TrackingResult, mended: bool) -> str:
+        """Why the grasp ``app`` (sampled densely as ``samples``) and its tracking ``tr`` reach does not hold, "" when
+        it does; ``mended``: False when a re-solve failed and the first approach was kept."""
         if not app.success:
             return f"its approach failed ({app.status})"
-        if tr.peak_rate_demand > RATE_DEMAND_TOLERATED:
-            return f"its tracking asks {tr.peak_rate_demand:.3g}× a joint's rate limit after its re-solve"
-        if not mended:
+        over = tr.peak_rate_demand > RATE_DEMAND_TOLERATED
+        if over and not met_grasp(tr):
+            return (f"its tracking asks {tr.peak_rate_demand:.3g}× a joint's rate limit after its re-solve and, "
+                    f"capped, misses the grasp by {tr.position_error_m:.2g} m, {tr.orientation_error_rad:.2g} rad, "
+                    f"{tr.relative_velocity_m_s:.2g} m/s, {tr.relative_angular_velocity_rad_s:.2g} rad/s")
+        # a failed re-solve with the rates within bounds was the clearance's; with them over, it was the rates', and the
+        # approach kept was never checked between its via points
+        if (not mended and not over) or (over and self.planner.approach_clearance.raised_bounds(app, samples,
+                                                                                               self.motion)[1]):
             return "its approach dips below its clearance between via points after its re-solve"
         dip = tracking_dip(self.planner.approach_clearance, tr, self.motion)
         if dip is not None:
