@@ -326,10 +326,10 @@ class GraspSearch:
             return (f"its tracking asks {tr.peak_rate_demand:.3g}× a joint's rate limit after its re-solve and, "
                     f"capped, misses the grasp by {tr.position_error_m:.2g} m, {tr.orientation_error_rad:.2g} rad, "
                     f"{tr.relative_velocity_m_s:.2g} m/s, {tr.relative_angular_velocity_rad_s:.2g} rad/s")
-        # a failed re-solve with the rates within bounds was the clearance's; with them over, it was the rates', and the
-        # approach kept was never checked between its via points
-        if (not mended and not over) or (over and self.planner.approach_clearance.raised_bounds(app, samples,
-                                                                                               self.motion)[1]):
+        # with the rates within bounds a failed re-solve was the clearance's; with them over, the approach kept was
+        # never checked between its via points
+        dips = bool(self.planner.approach_clearance.raised_bounds(app, samples, self.motion)[1]) if over else not mended
+        if dips:
             return "its approach dips below its clearance between via points after its re-solve"
         dip = tracking_dip(self.planner.approach_clearance, tr, self.motion)
         if dip is not None:
