@@ -15,18 +15,11 @@ import pytest
 
 from planner.config.scenario import load_scenario
 from planner.model.target import TargetState
-from planner.phases.approach import ApproachProblem
 from planner.phases.approach_clearance import DIP_TRIGGER_M, ApproachClearance
 from planner.plan_samples import PhaseSamples
 from tests.support.stored_plan import stored_phase, verify_engine_distances
 
 ROOT = Path(__file__).resolve().parents[3]
-SCENARIO_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
-
-
-@pytest.fixture(scope="module")
-def clearance() -> ApproachClearance:
-    return ApproachClearance(ApproachProblem(load_scenario(SCENARIO_II)))
 
 
 def test_distances_equal_verify_engine_pair_by_pair(clearance):

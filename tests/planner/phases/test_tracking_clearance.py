@@ -7,7 +7,6 @@ margin less the closed back-off, just above and just below that bound."""
 
 from __future__ import annotations
 
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,20 +14,10 @@ import pytest
 
 from planner.collision.contact_rule import TRACKING, closed_backoff_m, required_clearance_m
 from planner.collision.layout import scene_layout
-from planner.config.scenario import load_scenario
-from planner.phases.approach import ApproachProblem
-from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.tracking_clearance import tracking_dip
 from tests.support.stored_plan import stored_phase, verify_engine_distances
 
-ROOT = Path(__file__).resolve().parents[3]
-SCENARIO_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
 T_START_S = 30.0  # the hand-built trackings start here [s since the observation]
-
-
-@pytest.fixture(scope="module")
-def clearance() -> ApproachClearance:
-    return ApproachClearance(ApproachProblem(load_scenario(SCENARIO_II)))
 
 
 def test_a_stored_feasible_plans_tracking_keeps_its_clearance_as_verifys_engine_measures_it(clearance):
