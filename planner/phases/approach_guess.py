@@ -28,6 +28,7 @@ from planner.nlp.costs import manipulability
 from planner.nlp.phase_spline import fit_approach_params
 from planner.phases.approach_drift import correct_for_base_drift, ik_jacobian
 from planner.phases.approach_ik import PoseIK
+from planner.phases.approach_start import StartClearance
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
 
@@ -100,6 +101,13 @@ class _Candidate:
     start_delay_s: float
     free_axis_angle_rad: float | None  # about a free grasp axis, from the configured grasp frame [rad]
     ctx: _Scan  # the scan it was found in (its grasp frame)
+    # θ_in at its base offset is clear of the target at the approach's start (planner.phases.approach_start)
+    start_clear: bool = True
+
+    @property
+    def rank(self) -> tuple[bool, float]:
+        """Sort key, best first: a clear start before any other, then the score."""
+        return not self.start_clear, -self.score
 
 
 @dataclass(frozen=True)
@@ -115,6 +123,7 @@ class _Scan:
     x_home: Array
     extra_starts: list[Array]
     state: TargetState
+    start: StartClearance  # θ_in's clearance from the target at the approach's start
     held_rad: float | None = None  # the angle about the free grasp axis the grasp frame is held at [rad]
 
 
@@ -166,9 +175,11 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     rng = np.random.default_rng(IK_SEED)
     extra_starts = [np.concatenate([rng.uniform(0.6 * robot.q_min, 0.6 * robot.q_max), sc.base_offset_guess_m])
                     for _ in range(IK_EXTRA_STARTS)]
-    ctx = _Scan(sc, sc.target.motion(state, _horizon_s(sc)), fk_function(robot), build_scene(sc), PoseIK.shared(sc),
+    motion, scene = sc.target.motion(state, _horizon_s(sc)), build_scene(sc)
+    ctx = _Scan(sc, motion, fk_function(robot), scene, PoseIK.shared(sc),
                 np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)]),
-                np.concatenate([sc.q_initial, sc.base_offset_guess_m]), extra_starts, state)
+                np.concatenate([sc.q_initial, sc.base_offset_guess_m]), extra_starts, state,
+                StartClearance(sc, scene, motion))
     times = [float(t) for t in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S)]
     candidates, outcomes = _scan_window(ctx, times)
     if not candidates:
@@ -256,19 +267,8 @@ def _scored(ctx: _Scan, tau: float, configs: list[Array]) -> _Candidate:
     node_times = [0.0, *(f * t2 for f in TRACKING_NODES)]
     speeds = [np.abs(configs[j + 1][:7] - configs[j][:7]).max() / (node_times[j + 1] - node_times[j])
               / robot.qd_max.max() for j in range(len(TRACKING_NODES))]
-    manip = np.inf
-    frames: dict[str, list[Array]] = {}
-    for j, x in enumerate(configs):
-        R_t, _ = ctx.motion.body_pose(tau + tf + node_times[j])
-        T_target = np.eye(4)
-        T_target[:3, :3] = R_t[0]
-        T_target[:3, 3] = sc.target.p_world_com
-        poses = world_poses(robot, ctx.fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]), T_target)
-        for name, T in poses.items():
-            frames.setdefault(name, []).append(T)
-        manip = min(manip, manipulability(np.asarray(ik_jacobian(sc, x[:7]))))
-    # every configuration's pairs in one sweep: the engine's cost is per call
-    clearance = float(ctx.scene.sweep({name: np.array(Ts) for name, Ts in frames.items()}).distance_m.min())
+    manip = min(manipulability(np.asarray(ik_jacobian(sc, x[:7]))) for x in configs)
+    clearance = float(_distances(ctx, configs, [tau + tf + t for t in node_times]).min())
     # the quintic approach path peaks at 15/8 of its mean rate: travel / t_f¹ · 15/8 ≤ the limit
     travel = float((np.abs(x_pre[:7] - sc.q_initial) / robot.qd_max).max()) * 15 / 8 / tf
     speed_excess = sum(max(s / m - 1.0, 0.0) for s, m in zip(speeds, TRACKING_SPEED_MARGIN, strict=True))
@@ -277,7 +277,24 @@ def _scored(ctx: _Scan, tau: float, configs: list[Array]) -> _Candidate:
     psi = None
     if sc.target.grasp.free_axis is not None:
         psi = _angle_about_free_axis(ctx, ctx.motion.grasp_pose(tau + tf)[0][0], x_pre)
-    return _Candidate(score, clearance, [c.copy() for c in configs], tau, psi, ctx)
+    return _Candidate(score, clearance, [c.copy() for c in configs], tau, psi, ctx,
+                      ctx.start.is_clear(x_pre[7:], tau))
+
+
+def _distances(ctx: _Scan, configs: list[Array], times_s: list[float]) -> Array:
+    """Every pair's signed distance (n, pairs) [m] of the chaser in each configuration ``[q, b_x, b_z]`` against the
+    target at the matching time [s] (the base frozen, as in the scan's IK)."""
+    sc = ctx.sc
+    frames: dict[str, list[Array]] = {}
+    for x, t in zip(configs, times_s, strict=True):
+        T_target = np.eye(4)
+        T_target[:3, :3] = ctx.motion.body_pose(t)[0][0]
+        T_target[:3, 3] = sc.target.p_world_com
+        poses = world_poses(sc.robot, ctx.fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]), T_target)
+        for name, T in poses.items():
+            frames.setdefault(name, []).append(T)
+    # every configuration's pairs in one sweep: the engine's cost is per call
+    return ctx.scene.sweep({name: np.array(Ts) for name, Ts in frames.items()}).distance_m
 
 
 def _diverse(candidates: list[_Candidate], held: list[list[_Candidate]], count: int) -> list[_Candidate]:
@@ -285,8 +302,8 @@ def _diverse(candidates: list[_Candidate], held: list[list[_Candidate]], count: 
     best distinct candidate of each held angle (the angle with the best candidate first): a grasp held at another
     angle about a free axis is braked differently, and is tried once the scan's own grasps are."""
     chosen: list[_Candidate] = []
-    _take(sorted(candidates, key=lambda c: -c.score), chosen, count)
-    for pool in sorted((sorted(h, key=lambda c: -c.score) for h in held if h), key=lambda pool: -pool[0].score):
+    _take(sorted(candidates, key=lambda c: c.rank), chosen, count)
+    for pool in sorted((sorted(h, key=lambda c: c.rank) for h in held if h), key=lambda pool: pool[0].rank):
         _take(pool, chosen, len(chosen) + 1)
     return chosen
 

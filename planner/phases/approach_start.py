@@ -1,0 +1,53 @@
+"""Where the chaser may wait: θ_in at a base offset clear of the target when the approach starts.
+
+The approach starts at rest at the fixed configuration θ_in (Eq. 23) with the base at θ_b(0), and the NLP holds every
+pair's clearance from its first via point on. A start inside the target is one the NLP can mend only by moving the
+base, away from the pre-grasp the scan reached it for: at the scenario II states whose approach converged from no
+start, every scanned guess began with the arm 0.1-0.9 m inside the target.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.collision.layout import TARGET_BODY
+from planner.collision.nlp_scene import world_poses
+from planner.collision.scene_distances import CollisionScene
+from planner.config.scenario import Scenario
+from planner.model.robot import fk_function
+from planner.model.target import TargetMotion
+
+Array = NDArray[np.float64]
+
+
+class StartClearance:
+    """θ_in's clearance from the target at the approach's start, for one target motion, at any base offset."""
+
+    def __init__(self, scenario: Scenario, scene: CollisionScene, motion: TargetMotion) -> None:
+        self.scenario, self.scene, self.motion = scenario, scene, motion
+        # θ_in's body poses with the base at the origin: a base offset only translates them
+        self._at_origin = world_poses(scenario.robot, fk_function(scenario.robot)(scenario.q_initial), np.eye(3),
+                                      np.zeros(3), np.eye(4))
+
+    def distances(self, base_offsets_m: Array, t_s: float) -> Array:
+        """Every pair's signed distance (n, pairs) [m] of θ_in with the base at each of ``base_offsets_m`` (n, 2)
+        (x, z) against the target at ``t_s`` [s]."""
+        n = len(base_offsets_m)
+        shift = np.column_stack([base_offsets_m[:, 0], np.zeros(n), base_offsets_m[:, 1]])
+        T_target = np.eye(4)
+        T_target[:3, :3] = self.motion.body_pose(t_s)[0][0]
+        T_target[:3, 3] = self.scenario.target.p_world_com
+        frames = {}
+        for name, T in self._at_origin.items():
+            stack = np.repeat((T_target if name == TARGET_BODY else T)[None], n, axis=0)
+            if name != TARGET_BODY:
+                stack[:, :3, 3] += shift
+            frames[name] = stack
+        return self.scene.sweep(frames).distance_m
+
+    def is_clear(self, base_offset_m: Array, t_s: float) -> bool:
+        """True when θ_in at ``base_offset_m`` (x, z) [m] is clear of the target at ``t_s`` [s] by the collision
+        margin."""
+        closest = self.distances(np.asarray(base_offset_m, dtype=float)[None], t_s).min()
+        return bool(closest >= self.scenario.limits.collision_margin_m)
