@@ -93,20 +93,24 @@ def pregrasp_error(scenario: Scenario, R_ee: ca.MX, p_ee: ca.MX, R_target: ca.MX
     """Eq. 20-21 at t_f¹: ``(position error (3,) [m], rotation error, R_free (3, 3))``.
 
     The rotation error is the whole orientation's (3,), or with a free grasp axis a only the components of
-    a along the two other grasp axes (2,); ``R_free`` is then the rotation about a the gripper arrived with.
+    a along the two other grasp axes (2,); ``R_free`` is then the rotation about a the gripper arrived with, and the
+    back-off runs along the grasp frame turned by it (:mod:`planner.phases.pregrasp_pose`).
     """
     target = scenario.target
     T_bg = target.grasp.T_body_grasp
     R_g = ca.mtimes(R_target, ca.DM(T_bg[:3, :3]))
     p_g = com + ca.mtimes(R_target, ca.DM(T_bg[:3, 3]))
-    pos_err = p_ee - (p_g - scenario.approach.pregrasp_backoff_m * R_g[:, 2])
+    backoff = scenario.approach.pregrasp_backoff_m
     free = target.grasp.free_axis
     if free is None:
-        return pos_err, vee_skew(ca.mtimes(R_g.T, R_ee)), ca.DM.eye(3)
+        return p_ee - (p_g - backoff * R_g[:, 2]), vee_skew(ca.mtimes(R_g.T, R_ee)), ca.DM.eye(3)
     others = [e for e in np.eye(3) if abs(e @ free) < 0.5]
     a_ee = ca.mtimes(R_ee, ca.DM(free))
     rot_err = ca.vertcat(*[ca.dot(a_ee, ca.mtimes(R_g, ca.DM(e))) for e in others])
-    return pos_err, rot_err, free_axis_rotation(ca.mtimes(R_g.T, R_ee), free)
+    R_free = free_axis_rotation(ca.mtimes(R_g.T, R_ee), free)
+    # backed off along the grasp frame at the gripper's angle: the line the tracking closes along
+    z_held = ca.mtimes(R_g, R_free)[:, 2]
+    return p_ee - (p_g - backoff * z_held), rot_err, R_free
 
 
 def tracking_node_errors(scenario: Scenario, poses: ScenePoses, x_tracking: list[ca.MX], Q_tracking: list[ca.MX],

@@ -15,6 +15,7 @@ from planner.model.robot import fk_function
 from planner.model.rotation import axis_angle_to_matrix, quat_to_matrix
 from planner.model.target import TargetMotion
 from planner.phases.approach_ik import PoseIK
+from planner.phases.pregrasp_pose import at_own_angle, pregrasp_position
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
 
@@ -34,15 +35,15 @@ def correct_for_base_drift(sc: Scenario, ik: PoseIK, motion: TargetMotion, confi
     for _ in range(DRIFT_ITERATIONS):
         drifts = _base_drift(sc, configs)
         R_g, p_g = (a[0] for a in motion.grasp_pose(tau + tf))
-        x_pre = ik.solve(p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2], R_g, S_pre, [configs[0]],
-                         drift=drifts[0])
+        x_pre = ik.solve(pregrasp_position(sc, R_g, p_g), R_g, S_pre, [configs[0]], drift=drifts[0])
         if x_pre is None:
             return configs
-        new = [x_pre]
         R_free = np.eye(3)
         if free is not None:
+            x_pre = at_own_angle(sc, ik, R_g, p_g, x_pre, drifts[0][1] @ np.asarray(fk(x_pre[:7])[-2]), drifts[0])
             R_ee = drifts[0][1] @ np.asarray(fk(x_pre[:7])[-2])
             R_free = axis_angle_to_matrix(free, free_axis_angle(R_g, R_ee, free))
+        new = [x_pre]
         for j, frac in enumerate(TRACKING_NODES):
             t_node = frac * t2
             R_n, p_n = (a[0] for a in motion.grasp_pose(tau + tf + t_node))

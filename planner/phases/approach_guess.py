@@ -29,6 +29,7 @@ from planner.nlp.phase_spline import fit_approach_params
 from planner.phases.approach_drift import correct_for_base_drift, ik_jacobian
 from planner.phases.approach_ik import PoseIK
 from planner.phases.approach_start import StartClearance
+from planner.phases.pregrasp_pose import at_own_angle, pregrasp_position
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
 
@@ -227,14 +228,28 @@ def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, li
     """The pre-grasp and tracking-node configurations ``[q, b_x, b_z]`` for meeting at ``tau`` + t_f¹, as far
     as they were solved (all of them when the outcome is :attr:`MeetingOutcome.REACHED`)."""
     sc, ik = ctx.sc, ctx.ik
-    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
-    R_g, p_g = (a[0] for a in ctx.motion.grasp_pose(tau + tf))
-    p_pre = p_g - sc.approach.pregrasp_backoff_m * R_g[:, 2]
+    R_g, p_g = (a[0] for a in ctx.motion.grasp_pose(tau + sc.phases.approach_s))
+    p_pre = pregrasp_position(sc, R_g, p_g)
     if ik.out_of_reach(p_pre, None, (np.zeros(3), np.eye(3))):
         return MeetingOutcome.BEYOND_REACH, []
     x_pre = ik.solve(p_pre, R_g, ctx.S_pre, [x_prev, ctx.x_home, *ctx.extra_starts])
     if x_pre is None:
         return MeetingOutcome.IK_UNSOLVED, []
+    firsts = [x_pre]
+    if ctx.held_rad is None:  # the IK chose the angle about a free axis: back off along the frame at that angle
+        turned = at_own_angle(sc, ik, R_g, p_g, x_pre, np.asarray(ctx.fk(x_pre[:7])[-2]))
+        firsts = [turned, x_pre] if turned is not x_pre else firsts
+    for x in firsts:  # should the tracking poses fail from the turned pre-grasp, the NLP still starts near the IK's
+        outcome, configs = _tracking_poses_from(ctx, tau, R_g, x)
+        if outcome is MeetingOutcome.REACHED:
+            break
+    return outcome, configs
+
+
+def _tracking_poses_from(ctx: _Scan, tau: float, R_g: Array, x_pre: Array) -> tuple[MeetingOutcome, list[Array]]:
+    """``x_pre`` and the tracking-node configurations from it (base pinned at its offset), as far as solved."""
+    sc, ik = ctx.sc, ctx.ik
+    tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
     b = x_pre[7:]
     R_free = axis_angle_to_matrix(ctx.sc.target.grasp.free_axis, _angle_about_free_axis(ctx, R_g, x_pre)) \
         if ctx.held_rad is None and ctx.sc.target.grasp.free_axis is not None else np.eye(3)

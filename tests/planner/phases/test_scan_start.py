@@ -11,17 +11,14 @@ import pytest
 
 from lut.output.preview_geometry import chaser_body_poses
 from planner.collision.layout import TARGET_BODY, scene_layout
-from planner.collision.nlp_scene import build_scene
 from planner.config.scenario import load_scenario
-from planner.model.robot import fk_function
 from planner.model.target import TargetState
 from planner.nlp.bspline import UniformCubicBSpline
-from planner.phases import approach_guess
 from planner.phases.approach_guess import _Candidate, _diverse, _scan, _scored
-from planner.phases.approach_ik import PoseIK
 from planner.phases.approach_start import StartClearance
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.verify.collision import sweep_pairs
+from tests.support.scan_context import scan_context
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "configs" / "scenarios"
 # scenario II general tumble 3 of the coverage section (seed 7): its scan's best-scored meeting times start with the
@@ -33,13 +30,6 @@ TUMBLE = TargetState(np.array([-0.3394232665, -0.1586336632, -0.8999953385, -0.2
 @pytest.fixture(scope="module")
 def scenario_II():
     return load_scenario(SCENARIOS / "scenario_II.toml")
-
-
-def _context(sc, state: TargetState) -> approach_guess._Scan:
-    motion, scene = sc.target.motion(state, approach_guess._horizon_s(sc)), build_scene(sc)
-    home = np.concatenate([sc.q_initial, sc.base_offset_guess_m])
-    return approach_guess._Scan(sc, motion, fk_function(sc.robot), scene, PoseIK.shared(sc), np.eye(3), home, [], state,
-                                StartClearance(sc, scene, motion))
 
 
 def _verify_engine_start(sc, ctx, base_offset_m: np.ndarray, t_s: float) -> np.ndarray:
@@ -65,7 +55,7 @@ def test_start_distances_equal_verify_engine_by_pinocchio(scenario_II, base_offs
     every time (the tumble's first scanned guesses waited near it); the middle of the box is clear at 0 and 48 s,
     and at 90 s the turning target reaches into it."""
     sc = scenario_II
-    ctx = _context(sc, TUMBLE)
+    ctx = scan_context(sc, TUMBLE)
     b = np.array(base_offset_m)
     ours = ctx.start.distances(b[None], t_s)[0]
     ref = _verify_engine_start(sc, ctx, b, t_s)
@@ -98,7 +88,7 @@ def test_start_clear_at_the_margin_exactly(scenario_II, monkeypatch):
     """A start whose closest pair sits exactly at the collision margin is clear, 1e-9 m below it is not; the scan's
     candidate says which."""
     sc = scenario_II
-    ctx = _context(sc, TUMBLE)
+    ctx = scan_context(sc, TUMBLE)
     bound = sc.limits.collision_margin_m
     configs = [np.concatenate([sc.q_initial, [0.0, 0.0]])] * (1 + len(TRACKING_NODES))
     for start_m, clear in [(bound, True), (bound - 1e-9, False), (5.0, True), (-0.4, False)]:
@@ -113,7 +103,7 @@ def test_the_tumbles_first_guesses_start_clear(scenario_II):
     them."""
     sc = scenario_II
     scan = _scan(sc, UniformCubicBSpline(sc.approach.n_vertices, sc.phases.approach_s), TUMBLE, 5, True)
-    ctx = _context(sc, TUMBLE)
+    ctx = scan_context(sc, TUMBLE)
     starts = [_verify_engine_start(sc, ctx, g.base_offset_m, g.start_delay_s).min() for g in scan.guesses]
     assert min(starts[:3]) >= sc.limits.collision_margin_m
     assert min(starts) < 0.0
