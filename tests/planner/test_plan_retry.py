@@ -137,8 +137,21 @@ def test_when_no_grasp_succeeds_the_first_is_solved_again_without_the_budget(pla
         return solve(*args, **kwargs)
 
     monkeypatch.setattr(plan_grasps_module, "solve_approach", recorded)
+    fresh: list[bool] = []  # per grasp: its first tracking not yet simulated
     monkeypatch.setattr(plan_grasps_module.GraspSearch, "_candidate", lambda s, app: own.append(app.start_guess)
-                        or candidate(s, app))
+                        or fresh.append(True) or candidate(s, app))
+    simulate = planner.approach_and_tracking
+
+    def over_the_rate_once(app, motion):
+        # every grasp's first tracking asks 1.3× a rate limit, so that each grasp is re-solved once: the default
+        # state's trackings, their pre-grasp on the tracking's line, stay within the limits
+        samples, tr = simulate(app, motion)
+        if fresh[-1]:
+            fresh[-1] = False
+            tr = replace(tr, peak_rate_demand=1.3)
+        return samples, tr
+
+    monkeypatch.setattr(planner, "approach_and_tracking", over_the_rate_once)
     plan = planner.plan(sc.target_state.as_state())
     # every grasp under the budget (the scanned guesses in order, to the last), then the first again without it
     assert [c[1] for c in calls[:-1]] == [STABILIZATION_BUDGET] * (len(calls) - 1)
