@@ -1,11 +1,12 @@
 """The CI look-up table: a real build of ``configs/grids/ci.toml`` against the golden rebuild, and real
 queries of the golden table.
 
-Two files. ``tests/data/ci_rebuild_golden.h5`` is what today's planner builds from ``ci.toml``; regenerate it (after a
+Two files. ``tests/data/rebuild/ci_golden.h5`` (a folder of its own: the bench's coverage queries every table in
+``tests/data``) is what today's planner builds from ``ci.toml``; regenerate it (after a
 deliberate change of the planner or of the configs it hashes) with::
 
-    rm -f tests/data/ci_rebuild_golden.h5 && \
-        .venv/bin/lutgen build configs/grids/ci.toml --out tests/data/ci_rebuild_golden.h5 -j 2
+    rm -f tests/data/rebuild/ci_golden.h5 && \
+        .venv/bin/lutgen build configs/grids/ci.toml --out tests/data/rebuild/ci_golden.h5 -j 2
 
 The rebuild takes ~2 min on 2 cores, so it is marked slow and run by hand after a planner change
 (``./scripts/test -m slow tests/lut/query/test_ci_table.py``). ``tests/data/ci_golden.h5`` is the query tests'
@@ -35,7 +36,7 @@ from planner.phases.approach import ApproachSolution
 ROOT = Path(__file__).resolve().parents[3]
 CI_GRID = ROOT / "configs" / "grids" / "ci.toml"
 GOLDEN = ROOT / "tests" / "data" / "ci_golden.h5"
-REBUILD_GOLDEN = ROOT / "tests" / "data" / "ci_rebuild_golden.h5"
+REBUILD_GOLDEN = ROOT / "tests" / "data" / "rebuild" / "ci_golden.h5"
 LUTGEN = str(Path(sys.executable).parent / "lutgen")
 
 # IPOPT ends every solve on its iteration limit or its tolerances (the wall-time limit is a far safety
