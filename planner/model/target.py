@@ -106,6 +106,13 @@ class TargetMotion:
         """End of the propagated interval [s]."""
         return self._trajectory.t_end_s
 
+    def T_world_body(self, t_s: float) -> NDArray[np.float64]:
+        """The body frame's pose (4, 4) at ``t_s`` [s]: rotation and COM [m], world."""
+        R_world_body, p_world_com = self.body_pose(t_s)
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R_world_body[0], p_world_com[0]
+        return T
+
     def body_pose(self, times_s: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``R_world_body`` (n, 3, 3) and ``p_world_com`` (n, 3), m."""
         R_world_body = self._trajectory.R_world_body(times_s)

@@ -23,6 +23,7 @@ from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel, quat_to_rotation_sym
 from planner.model.robot import RobotModel, fk_function
 from planner.phases.approach_motion import TargetPath
+from planner.phases.pregrasp_pose import pregrasp_position
 from planner.phases.tracking_profile import backoff_m, blend
 
 Array = NDArray[np.float64]
@@ -100,17 +101,15 @@ def pregrasp_error(scenario: Scenario, R_ee: ca.MX, p_ee: ca.MX, R_target: ca.MX
     T_bg = target.grasp.T_body_grasp
     R_g = ca.mtimes(R_target, ca.DM(T_bg[:3, :3]))
     p_g = com + ca.mtimes(R_target, ca.DM(T_bg[:3, 3]))
-    backoff = scenario.approach.pregrasp_backoff_m
     free = target.grasp.free_axis
     if free is None:
-        return p_ee - (p_g - backoff * R_g[:, 2]), vee_skew(ca.mtimes(R_g.T, R_ee)), ca.DM.eye(3)
+        return p_ee - pregrasp_position(scenario, R_g, p_g), vee_skew(ca.mtimes(R_g.T, R_ee)), ca.DM.eye(3)
     others = [e for e in np.eye(3) if abs(e @ free) < 0.5]
     a_ee = ca.mtimes(R_ee, ca.DM(free))
     rot_err = ca.vertcat(*[ca.dot(a_ee, ca.mtimes(R_g, ca.DM(e))) for e in others])
     R_free = free_axis_rotation(ca.mtimes(R_g.T, R_ee), free)
     # backed off along the grasp frame at the gripper's angle: the line the tracking closes along
-    z_held = ca.mtimes(R_g, R_free)[:, 2]
-    return p_ee - (p_g - backoff * z_held), rot_err, R_free
+    return p_ee - pregrasp_position(scenario, ca.mtimes(R_g, R_free), p_g), rot_err, R_free
 
 
 def tracking_node_errors(scenario: Scenario, poses: ScenePoses, x_tracking: list[ca.MX], Q_tracking: list[ca.MX],

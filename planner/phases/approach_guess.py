@@ -299,13 +299,10 @@ def _scored(ctx: _Scan, tau: float, configs: list[Array]) -> _Candidate:
 def _distances(ctx: _Scan, configs: list[Array], times_s: list[float]) -> Array:
     """Every pair's signed distance (n, pairs) [m] of the chaser in each configuration ``[q, b_x, b_z]`` against the
     target at the matching time [s] (the base frozen, as in the scan's IK)."""
-    sc = ctx.sc
     frames: dict[str, list[Array]] = {}
     for x, t in zip(configs, times_s, strict=True):
-        T_target = np.eye(4)
-        T_target[:3, :3] = ctx.motion.body_pose(t)[0][0]
-        T_target[:3, 3] = sc.target.p_world_com
-        poses = world_poses(sc.robot, ctx.fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]), T_target)
+        poses = world_poses(ctx.sc.robot, ctx.fk(x[:7]), np.eye(3), np.array([x[7], 0.0, x[8]]),
+                            ctx.motion.T_world_body(t))
         for name, T in poses.items():
             frames.setdefault(name, []).append(T)
     # every configuration's pairs in one sweep: the engine's cost is per call

@@ -35,9 +35,7 @@ class StartClearance:
         (x, z) against the target at ``t_s`` [s]."""
         n = len(base_offsets_m)
         shift = np.column_stack([base_offsets_m[:, 0], np.zeros(n), base_offsets_m[:, 1]])
-        T_target = np.eye(4)
-        T_target[:3, :3] = self.motion.body_pose(t_s)[0][0]
-        T_target[:3, 3] = self.scenario.target.p_world_com
+        T_target = self.motion.T_world_body(t_s)
         frames = {}
         for name, T in self._at_origin.items():
             stack = np.repeat((T_target if name == TARGET_BODY else T)[None], n, axis=0)

@@ -19,7 +19,8 @@ Array = NDArray[np.float64]
 
 
 def pregrasp_position(scenario: Scenario, R_world_grasp: Array, p_world_grasp: Array) -> Array:
-    """The pre-grasp point (3,) [m]: ``p_world_grasp`` backed off along the z axis of ``R_world_grasp`` (3, 3)."""
+    """The pre-grasp point (3,) [m]: ``p_world_grasp`` backed off along the z axis of ``R_world_grasp`` (3, 3); numbers
+    or CasADi expressions (the approach NLP's Eq. 20 row)."""
     return p_world_grasp - scenario.approach.pregrasp_backoff_m * R_world_grasp[:, 2]
 
 
