@@ -1,19 +1,13 @@
-"""The CI look-up table: a real build of ``configs/grids/ci.toml`` against the golden rebuild, and real
-queries of the golden table.
+"""The CI look-up table: a real build of ``configs/grids/ci.toml`` against the golden table, and real queries of
+the golden table.
 
-Two files. ``tests/data/rebuild/ci_golden.h5`` (a folder of its own: the bench's coverage queries every table in
-``tests/data``) is what today's planner builds from ``ci.toml``; regenerate it (after a
-deliberate change of the planner or of the configs it hashes) with::
+``tests/data/ci_golden.h5`` is what today's planner builds from ``ci.toml``; regenerate it (after a deliberate change
+of the planner or of the configs it hashes) in its own folder, so that the scenario path it stores stays relative::
 
-    rm -f tests/data/rebuild/ci_golden.h5 && \
-        .venv/bin/lutgen build configs/grids/ci.toml --out tests/data/rebuild/ci_golden.h5 -j 2
+    rm -f tests/data/ci_golden.h5 && .venv/bin/lutgen build configs/grids/ci.toml --out tests/data/ci_golden.h5 -j 2
 
 The rebuild takes ~2 min on 2 cores, so it is marked slow and run by hand after a planner change
-(``./scripts/test -m slow tests/lut/query/test_ci_table.py``). ``tests/data/ci_golden.h5`` is the query tests'
-table: built by the planner before the pre-grasp sat on the tracking's line (commit 03dfc61), a valid table of the
-same configs whose plans a query simulates and verifies at each state as it would any table's; the query tests are
-written against what it holds (which corners interpolate, which need a repair), so it is kept as it is. The query
-tests read it and are fast.
+(``./scripts/test -m slow tests/lut/query/test_ci_table.py``). The query tests read the same file and are fast.
 """
 
 from __future__ import annotations
@@ -36,7 +30,6 @@ from planner.phases.approach import ApproachSolution
 ROOT = Path(__file__).resolve().parents[3]
 CI_GRID = ROOT / "configs" / "grids" / "ci.toml"
 GOLDEN = ROOT / "tests" / "data" / "ci_golden.h5"
-REBUILD_GOLDEN = ROOT / "tests" / "data" / "rebuild" / "ci_golden.h5"
 LUTGEN = str(Path(sys.executable).parent / "lutgen")
 
 # IPOPT ends every solve on its iteration limit or its tolerances (the wall-time limit is a far safety
@@ -89,12 +82,12 @@ def _assert_field_repeats(key: str, a: np.ndarray, b: np.ndarray, status: np.nda
 
 @pytest.mark.slow
 def test_ci_grid_rebuild_equals_the_golden_table(tmp_path):
-    """A rebuild repeats every per-point field of the golden rebuild (whatever fields it has), within the tolerances
+    """A rebuild repeats every per-point field of the golden table (whatever fields it has), within the tolerances
     above: parameters to 1e-4, verify's costs and margins to 1e-3 relative, status and strings exactly."""
     out = tmp_path / "ci.h5"
     summary = run_build(CI_GRID, out, BuildOptions(jobs=2, progress=False))
     assert summary.counts["pending"] == 0 and summary.counts["failed"] == 0, summary.failures
-    new, golden = Table.open(out), Table.open(REBUILD_GOLDEN)
+    new, golden = Table.open(out), Table.open(GOLDEN)
     assert new.model_hash == golden.model_hash, "configs changed since the golden table: regenerate it"
     np.testing.assert_array_equal(new.status, golden.status)
     assert new.field_names == golden.field_names, sorted(set(new.field_names) ^ set(golden.field_names))

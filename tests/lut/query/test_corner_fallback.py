@@ -8,7 +8,7 @@ which parameters it is given (and, for a repair, on the plan it repairs)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -57,11 +57,12 @@ def opened() -> TableQuery:
 def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: set[int],
               repairable: frozenset = frozenset(), costs: dict[int, float] | None = None,
               failures: dict | None = None) -> list:
-    """Corners with these weights (and costs, default 0); a plan verifies iff it is one of ``feasible``'s own, its
-    repair iff it is one of ``repairable``'s ("interpolated" for the interpolated plan); a plan that fails fails
-    ``failures``' kind for it (default: its braking alone). Returns the tried order."""
+    """Corners with these weights (and costs, default 0), each its own copy of one plan; a plan verifies iff it is
+    one of ``feasible``'s own, its repair iff it is one of ``repairable``'s ("interpolated" for the interpolated
+    plan); a plan that fails fails ``failures``' kind for it (default: its braking alone). Returns the tried order."""
     costs, failures = costs or {}, failures or {}
-    candidates = [Candidate(c, w, tq.points[c].parameters, costs.get(c, 0.0)) for c, w in weights.items()]
+    # copies of one plan: every corner meets at the same time, so all are mutually consistent whatever the table holds
+    candidates = [Candidate(c, w, replace(tq.points[1].parameters), costs.get(c, 0.0)) for c, w in weights.items()]
     owner = {id(c.parameters): c.corner for c in candidates}
     tried: list = []
 
@@ -120,7 +121,7 @@ def test_corners_at_the_cells_lowest_cost_are_tried_first_and_alone_averaged(ope
     monkeypatch.setattr(opened, "corner_candidates", lambda state: alike)
     assert sorted(opened.interpolate(STATE).corners) == [1, 2]
     tried = _stand_in(opened, monkeypatch, weights, feasible={0, 1, 2}, costs=costs)
-    assert sorted(opened.interpolate(STATE).corners) == [1, 2]  # their own meeting times agree as well
+    assert sorted(opened.interpolate(STATE).corners) == [1, 2]  # the stand-in's copies as well
     res = opened.query(STATE, budget_s=100.0)
     assert tried == ["interpolated", "repair interpolated", 2]  # the cheap ones by weight: 2 (0.4) before 1 (0.1)
     assert res.corners_used == [2] and res.source is QuerySource.CORNER

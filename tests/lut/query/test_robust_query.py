@@ -11,10 +11,9 @@ import pytest
 
 from tests.support.cli import ROOT, assert_one_line_error, lutgen_in_process, write_golden_for_current_model
 
-SIGMAS = "0.05,0.005"  # 1-σ attitude (deg) and rate (deg/s): a tenth of the issue's, where the golden plans' runs
-# sit at the edge of their grasp-torque margin
-EDGE = [3.5, 90.0, 10.0]  # between two grid nodes of one rate: the plain answer (repaired) and both nodes' plans
-EDGE_SCALE = 0.1  # of the issue's σ's (0.05°, 0.005 °/s): where the candidates' margins part (0, 1, 0 of 2 draws)
+SIGMAS = "0.05,0.005"  # 1-σ attitude (deg) and rate (deg/s): a tenth of the issue's
+EDGE = [4.0, 90.0, 3.0]  # between two grid nodes of one rate: the plain answer (interpolated) and both nodes' plans
+EDGE_SCALE = 0.035  # of the issue's σ's (0.0175°, 0.00175 °/s): where the candidates part (0, 1, 2 of 2 draws)
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +61,7 @@ def test_the_choice_is_the_most_robust_candidate_by_an_independent_count(golden)
     model = ErrorModel.from_sigmas(np.radians(SIGMA_ATT_DEG * EDGE_SCALE), np.radians(SIGMA_RATE_DEG_S * EDGE_SCALE))
     choice = robust_query(tq, state, RobustRequest(model, samples=2, seed=0, jobs=1), budget_s=600.0, refine=False)
     judged = [c for c in choice.candidates if c.estimate is not None]
-    assert [c.label for c in judged] == ["plain repaired", "corner 0", "corner 1"], candidate_text(choice)
+    assert [c.label for c in judged] == ["plain interpolated", "corner 2", "corner 3"], candidate_text(choice)
     target = {"target": {"attitude_wxyz": state.attitude_wxyz, "omega_body_rad_s": state.omega_body_rad_s}}
     draws = independent_true_states(target, 2, 0, EDGE_SCALE)
     # each judged plan flown against the same draws and verified one by one, outside robust_choice
