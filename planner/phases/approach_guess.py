@@ -351,7 +351,7 @@ def _best_guesses(spline: UniformCubicBSpline, chosen: list[_Candidate]) -> list
         sc, configs, tau, clearance = cand.ctx.sc, cand.configs, cand.start_delay_s, cand.clearance_m
         tf, psi = sc.phases.approach_s, cand.free_axis_angle_rad
         if np.isfinite(clearance):
-            configs = correct_for_base_drift(sc, cand.ctx.ik, cand.ctx.motion, configs, tau, cand.ctx.S_pre)
+            configs = _drift_corrected(cand)
             if psi is not None:  # the correction's IK may turn a free grasp about its axis
                 psi = _angle_about_free_axis(cand.ctx, cand.ctx.motion.grasp_pose(tau + tf)[0][0], configs[0])
         x = configs[0]
@@ -361,3 +361,13 @@ def _best_guesses(spline: UniformCubicBSpline, chosen: list[_Candidate]) -> list
         q_tracking = np.array([c[:7] for c in configs[1:]])
         guesses.append(ApproachGuess(params, x[7:].copy(), tau, x[:7].copy(), q_tracking, clearance, psi))
     return guesses
+
+
+def _drift_corrected(cand: _Candidate) -> list[Array]:
+    """``cand``'s configurations corrected for the base's drift (:func:`correct_for_base_drift`), or its own where the
+    correction would put a clear start inside the target: the NLP corrects a drift, but rarely converges from there."""
+    ctx = cand.ctx
+    corrected = correct_for_base_drift(ctx.sc, ctx.ik, ctx.motion, cand.configs, cand.start_delay_s, ctx.S_pre)
+    if cand.start_clear and not ctx.start.is_clear(corrected[0][7:], cand.start_delay_s):
+        return cand.configs
+    return corrected

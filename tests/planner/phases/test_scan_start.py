@@ -14,7 +14,8 @@ from planner.collision.layout import TARGET_BODY, scene_layout
 from planner.config.scenario import load_scenario
 from planner.model.target import TargetState
 from planner.nlp.bspline import UniformCubicBSpline
-from planner.phases.approach_guess import _Candidate, _diverse, _scan, _scored
+from planner.phases import approach_guess
+from planner.phases.approach_guess import _Candidate, _diverse, _drift_corrected, _scan, _scored
 from planner.phases.approach_start import StartClearance
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.verify.collision import sweep_pairs
@@ -25,6 +26,10 @@ SCENARIOS = Path(__file__).resolve().parents[3] / "configs" / "scenarios"
 # chaser's arm inside the target
 TUMBLE = TargetState(np.array([-0.3394232665, -0.1586336632, -0.8999953385, -0.2227904795]),
                      np.radians([1.106234751, -1.470538432, -3.995410357]))
+# general tumble 6 (seed 7): every scanned candidate starts clear, and the drift correction's IK moved two of them 0.34
+# m into the target (−0.26 and −0.20 m at the approach's start)
+TUMBLE_DRIFT = TargetState(np.array([-0.4713286957, -0.0485308051, -0.5818500420, 0.6610178138]),
+                           np.radians([2.150373340, 3.591500592, -3.278571596]))
 
 
 @pytest.fixture(scope="module")
@@ -107,3 +112,35 @@ def test_the_tumbles_first_guesses_start_clear(scenario_II):
     starts = [_verify_engine_start(sc, ctx, g.base_offset_m, g.start_delay_s).min() for g in scan.guesses]
     assert min(starts[:3]) >= sc.limits.collision_margin_m
     assert min(starts) < 0.0
+
+
+def test_every_clear_candidate_still_starts_clear_after_the_drift_correction(scenario_II):
+    """At the tumble where the drift correction's IK moved two clear starts into the target, every guess starts clear
+    by verify's engine at its own base offset and start delay: a correction into the target is not taken."""
+    sc = scenario_II
+    scan = _scan(sc, UniformCubicBSpline(sc.approach.n_vertices, sc.phases.approach_s), TUMBLE_DRIFT, 5, True)
+    ctx = scan_context(sc, TUMBLE_DRIFT)
+    starts = [_verify_engine_start(sc, ctx, g.base_offset_m, g.start_delay_s).min() for g in scan.guesses]
+    assert len(starts) >= 5 and min(starts) >= sc.limits.collision_margin_m, starts
+
+
+@pytest.mark.parametrize("start_clear, corrected_clear, taken", [(True, True, "corrected"), (True, False, "own"),
+                                                                 (False, False, "corrected"),
+                                                                 (False, True, "corrected")])
+def test_a_correction_is_taken_unless_it_moves_a_clear_start_inside(scenario_II, monkeypatch, start_clear,
+                                                                     corrected_clear, taken):
+    """The drift-corrected configurations replace the scan's unless the scan's start was clear and the corrected one
+    is not (judged at the corrected base offset, at the margin exactly: clear)."""
+    sc = scenario_II
+    ctx = scan_context(sc, TUMBLE)
+    own = [np.concatenate([sc.q_initial, [0.1, 0.2]])] * (1 + len(TRACKING_NODES))
+    corrected = [np.concatenate([sc.q_initial, [0.6, -0.4]])] * (1 + len(TRACKING_NODES))
+    monkeypatch.setattr(approach_guess, "correct_for_base_drift", lambda *args: corrected)
+    at_corrected = sc.limits.collision_margin_m if corrected_clear else sc.limits.collision_margin_m - 1e-9
+
+    def distances(self, b, t):
+        return np.array([[at_corrected if np.allclose(b, [[0.6, -0.4]]) else 1.0]])
+
+    monkeypatch.setattr(StartClearance, "distances", distances)
+    cand = _Candidate(0.5, 0.1, own, 30.0, None, ctx, start_clear)
+    assert _drift_corrected(cand) is (own if taken == "own" else corrected)
