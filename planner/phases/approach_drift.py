@@ -12,11 +12,10 @@ from numpy.typing import NDArray
 from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.robot import fk_function
-from planner.model.rotation import axis_angle_to_matrix, quat_to_matrix
+from planner.model.rotation import quat_to_matrix
 from planner.model.target import TargetMotion
 from planner.phases.approach_ik import PoseIK
-from planner.phases.pregrasp_pose import at_own_angle, pregrasp_position
-from planner.phases.tracking import free_axis_angle
+from planner.phases.pregrasp_pose import at_own_angle, free_axis_turn, pregrasp_position
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
 
 Array = NDArray[np.float64]
@@ -30,7 +29,6 @@ def correct_for_base_drift(sc: Scenario, ik: PoseIK, motion: TargetMotion, confi
     actually drifts along the guessed path. The drift does not depend on the base offset (translation
     invariance), so a few fixed-point passes converge."""
     tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
-    free = sc.target.grasp.free_axis
     fk = fk_function(sc.robot)
     for _ in range(DRIFT_ITERATIONS):
         drifts = _base_drift(sc, configs)
@@ -38,11 +36,8 @@ def correct_for_base_drift(sc: Scenario, ik: PoseIK, motion: TargetMotion, confi
         x_pre = ik.solve(pregrasp_position(sc, R_g, p_g), R_g, S_pre, [configs[0]], drift=drifts[0])
         if x_pre is None:
             return configs
-        R_free = np.eye(3)
-        if free is not None:
-            x_pre = at_own_angle(sc, ik, R_g, p_g, x_pre, drifts[0][1] @ np.asarray(fk(x_pre[:7])[-2]), drifts[0])
-            R_ee = drifts[0][1] @ np.asarray(fk(x_pre[:7])[-2])
-            R_free = axis_angle_to_matrix(free, free_axis_angle(R_g, R_ee, free))
+        x_pre = at_own_angle(sc, ik, R_g, p_g, x_pre, drifts[0][1] @ np.asarray(fk(x_pre[:7])[-2]), drifts[0])
+        R_free = free_axis_turn(sc, R_g, drifts[0][1] @ np.asarray(fk(x_pre[:7])[-2]))
         new = [x_pre]
         for j, frac in enumerate(TRACKING_NODES):
             t_node = frac * t2

@@ -29,7 +29,7 @@ from planner.nlp.phase_spline import fit_approach_params
 from planner.phases.approach_drift import correct_for_base_drift, ik_jacobian
 from planner.phases.approach_ik import PoseIK
 from planner.phases.approach_start import StartClearance
-from planner.phases.pregrasp_pose import at_own_angle, pregrasp_position
+from planner.phases.pregrasp_pose import at_own_angle, free_axis_turn, pregrasp_position
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
 
@@ -251,8 +251,7 @@ def _tracking_poses_from(ctx: _Scan, tau: float, R_g: Array, x_pre: Array) -> tu
     sc, ik = ctx.sc, ctx.ik
     tf, t2 = sc.phases.approach_s, sc.phases.tracking_s
     b = x_pre[7:]
-    R_free = axis_angle_to_matrix(ctx.sc.target.grasp.free_axis, _angle_about_free_axis(ctx, R_g, x_pre)) \
-        if ctx.held_rad is None and ctx.sc.target.grasp.free_axis is not None else np.eye(3)
+    R_free = free_axis_turn(sc, R_g, np.asarray(ctx.fk(x_pre[:7])[-2])) if ctx.held_rad is None else np.eye(3)
     configs, x_node = [x_pre], x_pre
     for frac in TRACKING_NODES:
         t_node = frac * t2

@@ -24,14 +24,22 @@ def pregrasp_position(scenario: Scenario, R_world_grasp: Array, p_world_grasp: A
     return p_world_grasp - scenario.approach.pregrasp_backoff_m * R_world_grasp[:, 2]
 
 
+def free_axis_turn(scenario: Scenario, R_world_grasp: Array, R_world_ee: Array) -> Array:
+    """The rotation (3, 3) about the grasp's free axis from ``R_world_grasp`` to the angle the end-effector
+    (``R_world_ee``) holds it at; the identity without a free axis."""
+    axis = scenario.target.grasp.free_axis
+    if axis is None:
+        return np.eye(3)
+    return axis_angle_to_matrix(axis, free_axis_angle(R_world_grasp, R_world_ee, axis))
+
+
 def at_own_angle(scenario: Scenario, ik: PoseIK, R_world_grasp: Array, p_world_grasp: Array, x_pre: Array,
                  R_world_ee: Array, drift: tuple[Array, Array] | None = None) -> Array:
     """``x_pre`` ``[q, b_x, b_z]``, whose ee (``R_world_ee``, drift applied) holds the grasp frame at some angle about
     its free axis, solved again for the pre-grasp backed off along the frame turned to that angle (the whole
     orientation matched); ``x_pre`` itself without a free axis, or where that solve fails."""
-    axis = scenario.target.grasp.free_axis
-    if axis is None:
+    if scenario.target.grasp.free_axis is None:
         return x_pre
-    R_G = R_world_grasp @ axis_angle_to_matrix(axis, free_axis_angle(R_world_grasp, R_world_ee, axis))
+    R_G = R_world_grasp @ free_axis_turn(scenario, R_world_grasp, R_world_ee)
     x = ik.solve(pregrasp_position(scenario, R_G, p_world_grasp), R_G, np.eye(3), [x_pre], drift=drift)
     return x_pre if x is None else x

@@ -13,7 +13,7 @@ from planner.config.scenario import load_scenario
 from planner.model.rotation import axis_angle_to_matrix
 from planner.phases.approach_constraints import pregrasp_error
 from planner.phases.approach_ik import REACH_TOLERANCE, PoseIK
-from planner.phases.pregrasp_pose import at_own_angle, pregrasp_position
+from planner.phases.pregrasp_pose import at_own_angle, free_axis_turn, pregrasp_position
 from tests.support.scan_context import scan_context
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "configs" / "scenarios"
@@ -51,7 +51,7 @@ def test_pregrasp_rows_vanish_on_the_turned_frames_backoff_line(scenario_II, psi
     np.testing.assert_allclose(pos.ravel(), 0.0, atol=1e-12)
     np.testing.assert_allclose(rot.ravel(), 0.0, atol=1e-12)
     np.testing.assert_allclose(R_g @ R_free, R_G, atol=1e-12)
-    np.testing.assert_allclose(pregrasp_position(sc, R_G, p_g), p_g - b * R_G[:, 2], atol=1e-15)
+    np.testing.assert_allclose(R_g @ free_axis_turn(sc, R_g, R_G), R_G, atol=1e-12)  # the scan's and drift's turn
     pos_configured = np.asarray(rows(R_G, p_g - b * R_g[:, 2], R_t)[0]).ravel()
     assert np.linalg.norm(pos_configured) == pytest.approx(2 * b * abs(np.sin(np.radians(psi_deg) / 2)), abs=1e-12)
 
@@ -108,3 +108,13 @@ def test_the_scan_starts_from_the_turned_pregrasp_and_falls_back_to_the_iks(scen
     assert outcome is MeetingOutcome.REACHED and len(tried) == 2
     assert not np.allclose(tried[0], tried[1])  # the turned pre-grasp first (ψ ≈ 80° here), then the IK's own
     assert configs[0] is tried[1]
+
+
+def test_without_a_free_axis_the_turn_is_none_and_the_pregrasp_is_the_iks():
+    """Scenario I's grasp is fixed: no turn, whatever the end-effector holds, and the IK's pre-grasp is kept as is."""
+    sc = load_scenario(SCENARIOS / "scenario_I.toml")
+    R_ee = axis_angle_to_matrix(np.array([0.0, 0.6, 0.8]), 2.0)
+    assert sc.target.grasp.free_axis is None
+    np.testing.assert_array_equal(free_axis_turn(sc, np.eye(3), R_ee), np.eye(3))
+    x_pre = np.arange(9.0)
+    assert at_own_angle(sc, None, np.eye(3), np.zeros(3), x_pre, R_ee) is x_pre
