@@ -12,14 +12,18 @@ from numpy.typing import NDArray
 from planner.config.scenario import Scenario
 from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.freefloating import FreeFloatingModel
-from planner.model.target import TargetMotion
+from planner.model.target import TargetMotion, TargetState
 from planner.nlp.bspline import UniformCubicBSpline
+from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution, smooth_stop_params
 from planner.phases.stabilization_solve import solve_stabilization
 from planner.phases.tracking import TrackingResult
 from planner.plan_samples import PhaseSamples
+from planner.verify.before_grasp import failed_before_grasp
+from planner.verify.verifiable import VerifiablePlan
+from planner.verify.verifier import verify
 
 Array = NDArray[np.float64]
 
@@ -42,6 +46,9 @@ class PhasePlanner(Protocol):
 
     def candidate_from(self, app: ApproachSolution, samples: PhaseSamples, tr: TrackingResult,
                        motion: TargetMotion) -> GraspCandidate: ...
+
+    def assemble(self, state: TargetState, c: GraspCandidate, stab: StabilizationSolution,
+                 timings: dict[str, float], notes: list[str]) -> VerifiablePlan: ...
 
 
 @dataclass
@@ -74,6 +81,17 @@ class GraspCandidate:
     def smooth_stop_params(self) -> Array:
         """The stabilization parameters of the smooth stop from this grasp (a cold solve's start), without an NLP."""
         return smooth_stop_params(self.planner.stabilization_spline, self.planner.scenario.robot, self.grasp)
+
+    def unbraked(self, status: SolveOutcome) -> StabilizationSolution:
+        """The smooth stop from this grasp as its stabilization, unsolved (``success`` False, ``status``)."""
+        return replace(StabilizationSolution.given(self.smooth_stop_params()), success=False, status=status)
+
+    def refused_before_braking(self, state: TargetState) -> list[str]:
+        """What verify refuses in this grasp's plan (observed ``state``) before the grasp, one line a check (empty:
+        nothing): judged with the unsolved smooth stop, since no braking changes it
+        (:mod:`planner.verify.before_grasp`)."""
+        plan = self.planner.assemble(state, self, self.unbraked(SolveOutcome.GIVEN), {}, [])
+        return [f"{c.name} {c.value:.3g} {c.unit} against {c.limit:.3g}" for c in failed_before_grasp(verify(plan))]
 
     @property
     def problem(self) -> StabilizationProblem:

@@ -7,9 +7,10 @@ NLP, then the full one from its answer, must be feasible within :data:`SCREEN_BU
 that passes has its stabilization (within :data:`STABILIZATION_BUDGET` iterations in all). A grasp screened
 out is set aside, and the grasps set aside get that budgeted stabilization only when no later grasp
 stabilized. When none succeeds, the first grasp's stabilization is solved again without the budget, so the
-plan is never worse than from the first grasp alone. A warm plan keeps its grasp. Once the plan's deadline has
-passed (:mod:`planner.deadline`) no further grasp or solve is started: the last grasp tried is the answer, and
-the plan's notes say so.
+plan is never worse than from the first grasp alone, unless verify refuses that grasp before it is braked (then
+no braking can make the plan feasible, and the unsolved smooth stop is its answer). A warm plan keeps its grasp.
+Once the plan's deadline has passed (:mod:`planner.deadline`) no further grasp or solve is started: the last grasp
+tried is the answer, and the plan's notes say so.
 """
 
 from __future__ import annotations
@@ -154,6 +155,10 @@ class GraspSearch:
             if more and not candidate.approach_holds:
                 self._note_unheld(candidate)
                 continue
+            if not candidate.approach_holds and self._refused(candidate):
+                if candidate is first:
+                    return first, first.unbraked(SolveOutcome.REFUSED_BEFORE_GRASP)
+                continue
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
             last = candidate, self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
@@ -172,6 +177,8 @@ class GraspSearch:
             self._note_failure(*last, "")
         if self.deadline.passed and last is not None:
             return self._answer(*last)
+        if self._refused(first):
+            return first, first.unbraked(SolveOutcome.REFUSED_BEFORE_GRASP)
         # a budgeted failure is never the answer: the first grasp gets its whole solve
         self.notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
                           "again without it")
@@ -196,6 +203,15 @@ class GraspSearch:
             what = f"failed within {stab.iterations} iterations ({stab.status})"
         self.notes.append(f"stabilization from the grasp at t = {candidate.grasp_time_s:.1f} s {what}"
                           + (f"; {then}" if then else ""))
+
+    def _refused(self, candidate: GraspCandidate) -> bool:
+        """True, and a note, when verify refuses ``candidate``'s plan before its grasp: no braking makes it feasible, so
+        the plan's time is not spent braking it (before the deadline only: after it nothing is solved anyway)."""
+        refused = [] if self.deadline.passed else candidate.refused_before_braking(self.state)
+        if refused:
+            self.notes.append(f"the grasp at t = {candidate.grasp_time_s:.1f} s is not braked: verify refuses its plan "
+                              f"before the grasp, whatever the braking ({'; '.join(refused)})")
+        return bool(refused)
 
     def _note_unheld(self, candidate: GraspCandidate) -> None:
         """Say in the plan's notes that ``candidate`` is not braked: its approach does not hold."""
@@ -275,8 +291,7 @@ class GraspSearch:
                    screen: int | None = None) -> StabilizationSolution:
         """The stabilization from ``candidate`` (this plan's warm start, iteration budget, screen and deadline)."""
         if self.deadline.passed:  # no NLP is built or solved: the smooth stop a cold solve starts from, unsolved
-            unsolved = StabilizationSolution.given(candidate.smooth_stop_params())
-            return replace(unsolved, success=False, status=SolveOutcome.OUT_OF_TIME)
+            return candidate.unbraked(SolveOutcome.OUT_OF_TIME)
         t0 = time.perf_counter()
         result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget, screen,
                                      self.deadline)

@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from planner.deadline import NO_DEADLINE, Deadline
-from planner.verify.kinematics import TIME_TOL_S
+from planner.verify.before_grasp import judged_before_grasp
 from planner.verify.verifier import VerifyReport, verify
 
 if TYPE_CHECKING:
@@ -24,18 +24,13 @@ if TYPE_CHECKING:
 # IPOPT iterations a repair gets: the repairs that succeeded took 0-5 (flat_spin_I_energy's off-grid queries), the ones
 # that failed ran to 116-120 (24-32 s each; the demo's query spent 45 s on three of them, 18 s with this cap)
 REPAIR_ITERATIONS = 15
-# checks that judge the approach, the tracking or the grasp itself: a new stabilization cannot change them
-BEFORE_THE_GRASP = frozenset({"grasp_position", "grasp_orientation", "grasp_velocity", "grasp_angular_velocity",
-                              "momentum_chaser", "join_velocity_approach_tracking", "joint_rate_consistency"})
 
 
 def stabilization_only(report: VerifyReport) -> bool:
     """True when ``report`` failed and every failed check is a stabilization one whose worst value lies at or after
     the grasp (a check failing before it as well is caught when the repaired plan is verified)."""
     failed = [c for c in report.checks.values() if not c.passed]
-    return bool(failed) and all(
-        c.name not in BEFORE_THE_GRASP and c.t_s is not None and c.t_s >= report.t_grasp_s - TIME_TOL_S
-        for c in failed)
+    return bool(failed) and all(c.t_s is not None and not judged_before_grasp(c, report.t_grasp_s) for c in failed)
 
 
 # the checks of the grasp wrench: a braking too harsh for the grasp it starts from

@@ -26,6 +26,7 @@ from planner.phases.approach_guess import angles_apart
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
 from planner.plan_grasps import BASE_OFFSET_BOX_M, BASE_OFFSET_GAP_M, SCREEN_BUDGET, other_base_offsets
+from planner.verify.before_grasp import failed_before_grasp
 from planner.verify.verifier import verify
 
 SCENARIO_II = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "scenario_II.toml"
@@ -371,16 +372,69 @@ def test_a_grasp_whose_approach_does_not_hold_is_not_braked_while_another_remain
 
 
 def test_with_no_other_grasp_left_the_unheld_first_grasp_is_still_braked(planner_II, monkeypatch):
-    """The first grasp is the plan's fallback: with nothing else to try it gets its whole solve, so that verify has a
-    whole trajectory to judge."""
+    """The first grasp is the plan's fallback: with nothing else to try, and verify refusing nothing before its grasp
+    (the default state's approach and tracking, only marked as not holding), it gets its whole solve."""
     sc, planner = planner_II
     calls: list[tuple[int, int | None, float]] = []
-    monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [])
-    monkeypatch.setattr(plan_grasps_module.GraspSearch, "_scanned_guesses", lambda self: 1)
+    _only_the_first_grasp(monkeypatch)
     monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER))
     _first_grasp_unheld(monkeypatch)
     plan = planner.plan(sc.target_state.as_state())
     assert calls == [(0, None, pytest.approx(plan.t_grasp))] and not any("is not braked" in n for n in plan.notes)
+    assert not any(c.passed is False for c in failed_before_grasp(verify(plan)))
+
+
+def _only_the_first_grasp(monkeypatch) -> None:
+    """No scanned guess after the first and no other base offset: the first grasp is the only one."""
+    monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [])
+    monkeypatch.setattr(plan_grasps_module.GraspSearch, "_scanned_guesses", lambda self: 1)
+
+
+def test_a_grasp_verify_refuses_before_the_grasp_is_not_braked(planner_II, monkeypatch):
+    """Scenario II flat spin 2 and tumble 4 spent 60 s of their budget braking a grasp whose tracking had lost the
+    handle. Here the only grasp's approach is rushed (its jerk parameters 1.3×, the approach failed): verify itself,
+    on the plan the search answers with, finds the joints over their rate limit before the grasp, so no stabilization
+    NLP is solved and the plan says why."""
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    _only_the_first_grasp(monkeypatch)
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, 0))  # it would brake, if asked
+    solve = plan_grasps_module.GraspSearch._solve_approach
+
+    def rushed(self, warm, **options):
+        app = solve(self, warm, **options)
+        return replace(app, success=False, params=1.3 * app.params)
+
+    monkeypatch.setattr(plan_grasps_module.GraspSearch, "_solve_approach", rushed)
+    plan = planner.plan(sc.target_state.as_state())
+    assert calls == [] and plan.stabilization.status == SolveOutcome.REFUSED_BEFORE_GRASP and not plan.solver_ok
+    report = verify(plan)
+    velocity = report.checks["joint_velocity"]
+    assert not velocity.passed and velocity.t_s < report.t_grasp_s - 1.0
+    assert "verify refuses its plan before the grasp, whatever the braking (" in plan.notes[-1]
+    assert "joint_velocity" in plan.notes[-1]
+    assert np.all(np.abs(plan.qd[-1]) < 1e-9)  # the unsolved smooth stop: a whole trajectory, at rest at its end
+
+
+def test_after_every_grasp_failed_a_first_grasp_verify_refuses_is_not_solved_again(planner_II, monkeypatch):
+    """The fallback's whole solve of the first grasp is skipped when verify refuses that grasp before it is braked
+    (the refusal a stand-in here: the control flow; the real verdict is the test above)."""
+    sc, planner = planner_II
+    calls: list[tuple[int, int | None, float]] = []
+    monkeypatch.setattr(plan_grasps_module, "other_base_offsets", lambda *args: [])
+    monkeypatch.setattr(plan_grasps_module.GraspSearch, "_scanned_guesses", lambda self: 2)
+    monkeypatch.setattr(GraspCandidate, "stabilize", _stand_in(calls, NEVER))
+    asked: list[float] = []
+    monkeypatch.setattr(GraspCandidate, "refused_before_braking",
+                        lambda self, state: asked.append(self.grasp_time_s) or (["a stand-in refusal"]
+                                                                                if self.app.start_guess == 0 else []))
+    plan = planner.plan(sc.target_state.as_state())
+    # both grasps braked under the budget (the first held: its refusal is asked only at the fallback), no whole solve
+    assert [c[1] for c in calls] == [STABILIZATION_BUDGET, STABILIZATION_BUDGET]
+    assert asked == [pytest.approx(calls[0][2])] and plan.t_grasp == pytest.approx(calls[0][2])
+    assert plan.stabilization.status == SolveOutcome.REFUSED_BEFORE_GRASP
+    assert not any("solved again without it" in n for n in plan.notes)
+    assert plan.notes[-1].endswith("whatever the braking (a stand-in refusal)")
 
 
 def test_a_tracking_that_asks_too_much_after_a_failed_re_solve_holds_only_if_it_met_the_grasp(planner_II,

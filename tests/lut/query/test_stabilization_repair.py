@@ -11,10 +11,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.query.stabilization_repair import BEFORE_THE_GRASP, single_cause, stabilization_only
+from lut.query.stabilization_repair import single_cause, stabilization_only
 from lut.query.table_query import TableQuery
 from planner.deadline import Deadline
 from planner.plan_parameters import PlanParameters
+from planner.verify.before_grasp import BEFORE_THE_GRASP
 from planner.verify.checks import CheckResult
 
 GOLDEN = Path(__file__).resolve().parents[2] / "data" / "ci_golden.h5"
