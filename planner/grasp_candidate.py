@@ -14,6 +14,7 @@ from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.bspline import UniformCubicBSpline
+from planner.nlp.feasibility_stop import StallRule
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_clearance import ApproachClearance
@@ -99,10 +100,12 @@ class GraspCandidate:
         return self.planner.stabilization_problem
 
     def stabilize(self, warm_params: Array | None, max_iterations: int | None, screen_iterations: int | None = None,
-                  deadline: Deadline = NO_DEADLINE) -> StabilizationSolution:
+                  deadline: Deadline = NO_DEADLINE, stall: StallRule | None = None) -> StabilizationSolution:
         """The stabilization from this grasp, within ``max_iterations`` (None: the scenario's limit only),
-        screened by its coarse NLP within ``screen_iterations`` (None: no screen), ended at ``deadline``."""
-        return solve_stabilization(self.problem, self.grasp, warm_params, max_iterations, screen_iterations, deadline)
+        screened by its coarse NLP within ``screen_iterations`` (None: no screen), ended at ``deadline`` (and, warm,
+        once it has stalled by ``stall``)."""
+        return solve_stabilization(self.problem, self.grasp, warm_params, max_iterations, screen_iterations, deadline,
+                                   stall)
 
 
 def accumulated(new: ApproachSolution, old: ApproachSolution) -> ApproachSolution:

@@ -24,6 +24,7 @@ from planner.deadline import NO_DEADLINE, Deadline
 from planner.grasp_candidate import GraspCandidate
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
+from planner.nlp.feasibility_stop import StallRule
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_clearance import ApproachClearance
 from planner.phases.approach_guess import ReachScan, ScanOnDemand
@@ -196,14 +197,15 @@ class Planner:
             problem.coarse_problem()
 
     def simulate(self, state: TargetState, given: PlanParameters, resolve_iterations: int | None = None,
-                 deadline: Deadline = NO_DEADLINE) -> GraspPlan:
+                 deadline: Deadline = NO_DEADLINE, stall: StallRule | None = None) -> GraspPlan:
         """The plan that given parameters produce for ``state``, without solving (table queries).
 
         The approach parameters are used as they are; the tracking IK runs from where they end; the
         stabilization parameters are applied to Eq. 24 from the actual grasp state. ``verify`` decides.
         With ``resolve_iterations`` the stabilization is what the flight software would fly once grasped: its NLP
         solved warm from the given parameters at the actual grasp state within that many IPOPT iterations
-        (:meth:`resolved_stabilization`), ended at ``deadline``; approach and tracking are the same as without.
+        (:meth:`resolved_stabilization`), ended at ``deadline`` or once it has stalled by ``stall``; approach and
+        tracking are the same as without.
         """
         t_start = time.perf_counter()
         app, motion = ApproachSolution.given(given.approach), self.motion(state)
@@ -216,7 +218,7 @@ class Planner:
         notes = ["simulated from given parameters"]
         t_stab = time.perf_counter()
         if resolve_iterations is not None:
-            stab, note = self.resolved_stabilization(candidate, stab.params, resolve_iterations, deadline)
+            stab, note = self.resolved_stabilization(candidate, stab.params, resolve_iterations, deadline, stall)
             notes.append(note)
         timings = {"approach_s": 0.0, "stabilization_s": time.perf_counter() - t_stab}
         plan = self.assemble(state, candidate, stab, timings, notes)
@@ -224,12 +226,13 @@ class Planner:
         return plan
 
     def resolved_stabilization(self, candidate: GraspCandidate, planned: Array, max_iterations: int,
-                               deadline: Deadline = NO_DEADLINE) -> tuple[StabilizationSolution, str]:
+                               deadline: Deadline = NO_DEADLINE,
+                               stall: StallRule | None = None) -> tuple[StabilizationSolution, str]:
         """The stabilization NLP solved warm from ``planned`` at ``candidate``'s grasp within ``max_iterations`` (ended
-        at ``deadline``), and
+        at ``deadline``, or once it has stalled by ``stall``), and
         a note: its answer when the solve succeeds, else the ``planned`` spline (the flight software flies what it
         has; such a solution keeps the failed solve's status and iterations, with ``success`` False)."""
-        solved = candidate.stabilize(planned, max_iterations, deadline=deadline)
+        solved = candidate.stabilize(planned, max_iterations, deadline=deadline, stall=stall)
         if solved.success:
             return solved, f"stabilization re-solved warm at the grasp ({solved.iterations} iterations)"
         kept = replace(StabilizationSolution.given(planned), success=False, status=solved.status,

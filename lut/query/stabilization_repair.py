@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from planner.deadline import NO_DEADLINE, Deadline
+from planner.nlp.feasibility_stop import StallRule
 from planner.verify.before_grasp import judged_before_grasp
 from planner.verify.verifier import VerifyReport, verify
 
@@ -24,6 +25,9 @@ if TYPE_CHECKING:
 # IPOPT iterations a repair gets: the repairs that succeeded took 0-5 (flat_spin_I_energy's off-grid queries), the ones
 # that failed ran to 116-120 (24-32 s each; the demo's query spent 45 s on three of them, 18 s with this cap)
 REPAIR_ITERATIONS = 15
+# a repair whose violation has stopped falling rarely succeeds within its iterations: given up, it frees the time
+# for the next plan (README, "The measurements behind the planner's constants")
+REPAIR_STALL = StallRule(after=5, over=5, ratio=0.7)
 
 
 def stabilization_only(report: VerifyReport) -> bool:
@@ -50,11 +54,12 @@ def single_cause(report: VerifyReport) -> bool:
 def repaired_plan(planner: Planner, state: TargetState, parameters: PlanParameters, report: VerifyReport,
                   deadline: Deadline = NO_DEADLINE) -> tuple[GraspPlan, VerifyReport] | None:
     """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
-    :data:`REPAIR_ITERATIONS` iterations, ended at ``deadline``), when ``report`` (its verification) failed only from
-    the grasp on and the repaired plan verifies feasible: ``(plan, its report)``; else None."""
+    :data:`REPAIR_ITERATIONS` iterations, given up once stalled by :data:`REPAIR_STALL`, ended at ``deadline``),
+    when ``report`` (its verification) failed only from the grasp on and the repaired plan verifies feasible:
+    ``(plan, its report)``; else None."""
     if not stabilization_only(report):
         return None
-    plan = planner.simulate(state, parameters, REPAIR_ITERATIONS, deadline)
+    plan = planner.simulate(state, parameters, REPAIR_ITERATIONS, deadline, REPAIR_STALL)
     if not plan.stabilization.success:
         return None
     repaired = verify(plan)

@@ -17,10 +17,13 @@ the iterate reached by then is the answer.
 
 It also keeps the least violating iterate of the solve (:meth:`least_violating`): an unsuccessful solve's last
 iterate can be anywhere, while the least violating one is what the solve came closest to, which a plan that fails
-should show.
+should show. Armed with a :class:`StallRule`, it ends a solve whose violation has stopped falling (``stalled``
+afterwards): a query's repair that will not succeed within its budget gives up early.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -31,6 +34,20 @@ from planner.excess import relative_excess_sum
 
 Array = NDArray[np.float64]
 
+
+@dataclass(frozen=True)
+class StallRule:
+    """A solve has stalled at iteration ``i ≥ after`` when its relative violation (:meth:`FeasibilityStop.violation`)
+    is still above ``ratio`` times what it was ``over`` iterations before."""
+
+    after: int
+    over: int
+    ratio: float
+
+    def holds(self, violations: list[float]) -> bool:
+        """True when the violations of iterations 0, 1, … (the last one the current iterate's) have stalled."""
+        i = len(violations) - 1
+        return i >= max(self.after, self.over) and violations[i] > self.ratio * violations[i - self.over]
 
 
 def row_limits(lbg: Array, ubg: Array) -> Array:
@@ -63,22 +80,29 @@ class FeasibilityStop(ca.Callback):
         self._row_limit = np.zeros(n_g)
         self._least_violation = np.inf
         self._least_violating: tuple[Array, float] | None = None  # (x, f)
+        self.stall: StallRule | None = None
+        self.stalled = False
+        self._violations: list[float] = []  # relative violation of each iteration of the current solve
         self.construct(name, {})
 
     def arm(self, lbg: Array, ubg: Array, stop_when_feasible: bool = True, max_iterations: int | None = None,
-            deadline: Deadline = NO_DEADLINE) -> None:
+            deadline: Deadline = NO_DEADLINE, stall: StallRule | None = None) -> None:
         """Set the bounds of the coming solve and clear the stop flags.
 
         ``stop_when_feasible`` False keeps only the budget; ``max_iterations`` (None: none) stops the solve
-        after that many IPOPT iterations; ``deadline`` stops it at the first iteration past that instant.
+        after that many IPOPT iterations; ``deadline`` stops it at the first iteration past that instant; ``stall``
+        (None: none) stops it once its violation has stopped falling.
         """
         self.lbg, self.ubg = np.asarray(lbg, dtype=float), np.asarray(ubg, dtype=float)
         self.stop_when_feasible = stop_when_feasible
         self.max_iterations = max_iterations
         self.deadline = deadline
+        self.stall = stall
         self.stopped = False
         self.budget_exhausted = False
         self.out_of_time = False
+        self.stalled = False
+        self._violations = []
         self._calls = 0
         self._row_limit = row_limits(self.lbg, self.ubg)
         self._least_violation, self._least_violating = np.inf, None
@@ -118,6 +142,7 @@ class FeasibilityStop(ca.Callback):
         x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
         g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
         relative = self.violation(g)
+        self._violations.append(relative)
         if relative < self._least_violation:
             self._least_violation = relative
             self._least_violating = x.copy(), float(arg[ca.nlpsol_out().index("f")])
@@ -126,5 +151,7 @@ class FeasibilityStop(ca.Callback):
             self.stopped = violation <= self.constraint_tol and bool(np.all(x[self.slack_index] <= self.slack_tol))
         self.budget_exhausted = not self.stopped and self.max_iterations is not None \
             and iteration >= self.max_iterations
-        self.out_of_time = not (self.stopped or self.budget_exhausted) and self.deadline.passed
-        return [1.0 if self.stopped or self.budget_exhausted or self.out_of_time else 0.0]
+        self.stalled = not (self.stopped or self.budget_exhausted) and self.stall is not None \
+            and self.stall.holds(self._violations)
+        self.out_of_time = not (self.stopped or self.budget_exhausted or self.stalled) and self.deadline.passed
+        return [1.0 if self.stopped or self.budget_exhausted or self.stalled or self.out_of_time else 0.0]

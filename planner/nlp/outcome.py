@@ -44,6 +44,7 @@ class SolveOutcome(StrEnum):
     NO_PINNED_START = "no reachable meeting time with the base pinned"
     TORQUE_BETWEEN_VIA_POINTS = "Torque_Over_Limit_Between_Via_Points"  # feasible at the via points only
     REFUSED_BEFORE_GRASP = "Refused_Before_The_Grasp"  # not braked: verify refuses the plan before its grasp
+    STALLED = "Stalled"  # its violation stopped falling (a stall rule armed: a repair given up early)
 
     @classmethod
     def from_ipopt(cls, return_status: str) -> SolveOutcome:

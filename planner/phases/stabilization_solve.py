@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.deadline import NO_DEADLINE, Deadline
+from planner.nlp.feasibility_stop import StallRule
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.sampled_peak import peak_magnitude
 from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
@@ -30,7 +31,7 @@ TORQUE_MARGIN = 0.98
 
 def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None = None,
                         max_iterations: int | None = None, screen_iterations: int | None = None,
-                        deadline: Deadline = NO_DEADLINE) -> StabilizationSolution:
+                        deadline: Deadline = NO_DEADLINE, stall: StallRule | None = None) -> StabilizationSolution:
     """Solve ``problem`` for ``grasp``, from ``warm_params`` ``(7·(N−5),)`` or, cold, by way of the coarse problem.
 
     A cold start first solves the coarse NLP from :meth:`~StabilizationProblem.initial_params` and starts the
@@ -43,10 +44,11 @@ def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_p
     iterations, and a grasp where either is not feasible within them is given up at once (status
     ``Screened_Out``, no full solve from the initial parameters); a grasp that passes has the very answer of an
     unscreened solve (the same iterates, only the budgets are smaller). Past ``deadline`` a running solve ends
-    and no further one starts (status ``Out_Of_Time``).
+    and no further one starts (status ``Out_Of_Time``). A warm solve armed with ``stall`` ends once its violation has
+    stopped falling (status ``Stalled``).
     """
     if warm_params is not None or problem.coarse_via_points == 0:
-        solved = solve_once(problem, grasp, warm_params, max_iterations, deadline)
+        solved = solve_once(problem, grasp, warm_params, max_iterations, deadline, stall=stall)
     else:
         solved = _coarse_to_fine(problem, grasp, max_iterations, screen_iterations, deadline)
     return _held_between_via_points(problem, grasp, solved, max_iterations, deadline)
@@ -111,9 +113,9 @@ def _screened(max_iterations: int | None, screen_iterations: int | None) -> int 
 
 def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None,
                max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE,
-               torque_scale: float = 1.0) -> StabilizationSolution:
+               torque_scale: float = 1.0, stall: StallRule | None = None) -> StabilizationSolution:
     """One IPOPT run of ``problem`` from ``warm_params`` (None: its initial parameters), its via-point torque bounds
-    multiplied by ``torque_scale``."""
+    multiplied by ``torque_scale``, ended early by ``stall`` (None: never)."""
     par = problem.parameters(grasp)
     w0 = problem.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
     if problem.n_extra:
@@ -125,7 +127,7 @@ def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Ar
         lbg, ubg = lbg.copy(), ubg.copy()
         lbg[rows] *= torque_scale
         ubg[rows] *= torque_scale
-    problem.stop.arm(lbg, ubg, problem.feasibility_only, max_iterations, deadline)
+    problem.stop.arm(lbg, ubg, problem.feasibility_only, max_iterations, deadline, stall)
     t0 = time.perf_counter()
     sol = problem.solver(x0=w0, p=par, lbx=problem.lbw, ubx=problem.ubw, lbg=lbg, ubg=ubg)
     elapsed = time.perf_counter() - t0
@@ -140,6 +142,8 @@ def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Ar
         success, status = True, SolveOutcome.FEASIBLE_POINT_FOUND
     elif problem.stop.budget_exhausted:
         success, status = False, SolveOutcome.ITERATION_BUDGET_EXHAUSTED
+    elif problem.stop.stalled:
+        success, status = False, SolveOutcome.STALLED
     elif problem.stop.out_of_time:
         success, status = False, SolveOutcome.OUT_OF_TIME
     return StabilizationSolution(P, success, status, int(stats["iter_count"]), elapsed, problem.build_time_s,

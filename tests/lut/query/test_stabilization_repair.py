@@ -11,9 +11,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.query.stabilization_repair import single_cause, stabilization_only
+from lut.query.stabilization_repair import REPAIR_ITERATIONS, REPAIR_STALL, single_cause, stabilization_only
 from lut.query.table_query import TableQuery
 from planner.deadline import Deadline
+from planner.nlp.outcome import SolveOutcome
 from planner.plan_parameters import PlanParameters
 from planner.verify.before_grasp import BEFORE_THE_GRASP
 from planner.verify.checks import CheckResult
@@ -83,6 +84,23 @@ def test_a_spline_that_brakes_too_hard_is_re_solved_and_the_approach_kept(opened
     assert repaired.feasible and "re-solved warm" in plan.notes[-1]
     assert np.array_equal(plan.approach.parameters.params, stored.approach.params)
     assert np.array_equal(plan.approach.parameters.base_offset_m, stored.approach.base_offset_m)
+
+
+def test_a_repair_whose_violation_stops_falling_is_given_up_early(opened):
+    """A golden point's braking doubled swings the arm past its limits and into the target as well: its repair's
+    violation stalls, and it is given up after 5 iterations (the stall rule), where the whole 15 fail as well."""
+    point = opened.feasible[1]
+    state = opened.grid.state_at(opened.grid.coordinates(point))
+    stored = opened.points[point].parameters
+    doubled = PlanParameters(stored.approach, 2.0 * np.asarray(stored.stabilization_params))
+    _, report = opened.simulate_and_verify(state, doubled, {})
+    assert stabilization_only(report) and not single_cause(report)
+    given_up = opened.planner.simulate(state, doubled, REPAIR_ITERATIONS, Deadline.after(100.0), REPAIR_STALL)
+    assert given_up.stabilization.status == SolveOutcome.STALLED
+    assert REPAIR_STALL.after <= given_up.stabilization.iterations < REPAIR_ITERATIONS
+    whole = opened.planner.simulate(state, doubled, REPAIR_ITERATIONS, Deadline.after(100.0))
+    assert not whole.stabilization.success and whole.stabilization.iterations == REPAIR_ITERATIONS
+    assert opened.repaired(state, doubled, report, Deadline.after(100.0)) is None
 
 
 def test_a_plan_that_fails_before_its_grasp_is_not_repaired(opened):

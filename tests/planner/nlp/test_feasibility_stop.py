@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from planner.deadline import Deadline
-from planner.nlp.feasibility_stop import FeasibilityStop
+from planner.nlp.feasibility_stop import FeasibilityStop, StallRule
 
 
 def _solve(stop: FeasibilityStop | None, x0: list[float]):
@@ -97,3 +97,33 @@ def test_a_passed_deadline_ends_the_solve_at_its_first_callback():
     stop.arm(np.array([-np.inf]), np.array([1.0]), stop_when_feasible=False, deadline=Deadline.after(3600.0))
     solver(**kwargs)
     assert not stop.out_of_time and solver.stats()["success"]
+
+
+def test_a_stall_rule_holds_only_once_the_violation_stops_falling_by_its_ratio():
+    rule = StallRule(after=5, over=5, ratio=0.7)
+    falling = [10.0 * 0.9**i for i in range(12)]  # 41 % less over any 5 iterations: never stalled
+    assert not any(rule.holds(falling[: i + 1]) for i in range(len(falling)))
+    flat = [10.0] * 12
+    assert [rule.holds(flat[: i + 1]) for i in range(7)] == [False] * 5 + [True, True]  # from iteration 5 on
+    exactly = [10.0, 9.0, 8.0, 7.5, 7.2, 7.0]  # 7.0 is exactly 0.7 × 10: not above it, not stalled
+    assert not rule.holds(exactly) and rule.holds([*exactly[:-1], 7.0 + 1e-12])
+    assert not rule.holds([5.0, 1.0, 1.0, 1.0, 1.0, 0.0])  # feasible: nothing to fall from
+
+
+def test_an_armed_stall_rule_ends_a_solve_whose_violation_stops_falling():
+    # the unreachable disc of the test above (y pinned at 2), with a budget and no feasibility test: the violation
+    # settles at s ≥ 3 while IPOPT goes on; a stall rule ends it, and re-armed without one the solve runs on
+    w = ca.MX.sym("w", 3)
+    stop = FeasibilityStop("toy_stall", 3, 1, 0, slice(2, 3), slack_tol=1e-6, constraint_tol=1e-9)
+    solver = ca.nlpsol("toy_stall_solver", "ipopt", {"x": w, "f": 1e-3 * w[0] ** 2, "g": w[0] ** 2 + w[1] ** 2},
+                       {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "iteration_callback": stop})
+    kwargs = {"x0": [2.0, 2.0, 0.0], "lbx": [-np.inf, 2.0, 0.0], "ubx": [np.inf, 2.0, 0.0], "lbg": -np.inf,
+              "ubg": 1.0}
+    stop.arm(np.array([-np.inf]), np.array([1.0]), max_iterations=50, stall=StallRule(after=5, over=5, ratio=0.7))
+    solver(**kwargs)
+    assert stop.stalled and not stop.budget_exhausted and not stop.stopped
+    stalled_at = solver.stats()["iter_count"]
+    assert stalled_at >= 5 and solver.stats()["return_status"] == "User_Requested_Stop"
+    stop.arm(np.array([-np.inf]), np.array([1.0]), max_iterations=50)
+    solver(**kwargs)
+    assert not stop.stalled and solver.stats()["iter_count"] > stalled_at
