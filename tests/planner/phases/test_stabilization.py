@@ -117,7 +117,7 @@ def test_cold_solve_falls_back_to_the_full_nlp_when_the_warm_solve_fails(problem
     calls = []
     template = StabilizationSolution(np.zeros(problem.n_params), True, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
-    def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None):
+    def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None, stall=None):
         assert max_iterations is None  # no budget asked, none passed on
         calls.append((nlp is problem, None if warm_params is None else np.asarray(warm_params).copy()))
         n = len(calls)
@@ -142,7 +142,7 @@ def test_an_iteration_budget_is_shared_by_the_coarse_and_full_solves(problem, gr
     calls = []
     template = StabilizationSolution(np.zeros(problem.n_params), False, "", 0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
-    def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None):
+    def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None, stall=None):
         calls.append(max_iterations)
         return replace(template, iterations=min(70, max_iterations), status="Iteration_Budget_Exhausted"
                        if max_iterations <= 70 else "Infeasible_Problem_Detected")
@@ -157,7 +157,7 @@ def test_an_iteration_budget_is_shared_by_the_coarse_and_full_solves(problem, gr
 def test_warm_solve_skips_the_coarse_problem(problem, grasp, monkeypatch):
     calls = []
 
-    def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None):
+    def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None, stall=None):
         calls.append((nlp is problem, max_iterations))
         return "answer"
 
@@ -183,7 +183,8 @@ def test_a_screen_ends_a_cold_solve_whose_coarse_nlp_is_not_feasible_within_it(p
                                          (True, True, [(False, 20), (True, 20)])):
         calls = []
 
-        def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None, oks=(coarse_ok, full_ok), calls=calls):
+        def fake_solve(nlp, g, warm_params, max_iterations=None, deadline=None, stall=None, oks=(coarse_ok, full_ok),
+                       calls=calls):
             calls.append((nlp is problem, max_iterations))
             ok = oks[nlp is problem]
             return replace(template, iterations=10 if ok else max_iterations, success=ok,
