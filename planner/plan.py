@@ -89,6 +89,9 @@ class GraspPlan:
     timings_s: dict[str, float] = field(default_factory=dict)
     solver_ok: bool = True
     notes: list[str] = field(default_factory=list)
+    # the grasp it was assembled from (approach, tracking, compound), so that its braking can be re-solved without
+    # simulating the approach and tracking again (:meth:`Planner.restabilized`)
+    candidate: GraspCandidate | None = field(default=None, repr=False, compare=False)
 
     @property
     def t_grasp(self) -> float:
@@ -214,8 +217,25 @@ class Planner:
         if params is None:
             params = candidate.smooth_stop_params()
         # given parameters need no NLP: a query that only simulates and verifies never builds one
-        stab = StabilizationSolution.given(np.asarray(params, dtype=float))
-        notes = ["simulated from given parameters"]
+        return self._braked(state, candidate, np.asarray(params, dtype=float), ["simulated from given parameters"],
+                            resolve_iterations, deadline, stall, t_start)
+
+    def restabilized(self, plan: GraspPlan, resolve_iterations: int, deadline: Deadline = NO_DEADLINE,
+                     stall: StallRule | None = None) -> GraspPlan:
+        """``simulate(plan.target_state, plan.parameters, resolve_iterations, deadline, stall)`` for a plan this planner
+        assembled: the same plan, with its grasp's approach and tracking reused instead of simulated again."""
+        if plan.candidate is None:
+            return self.simulate(plan.target_state, plan.parameters, resolve_iterations, deadline, stall)
+        return self._braked(plan.target_state, plan.candidate, plan.stabilization.params,
+                            ["simulated from given parameters"], resolve_iterations, deadline, stall,
+                            time.perf_counter())
+
+    def _braked(self, state: TargetState, candidate: GraspCandidate, params: Array, notes: list[str],
+                resolve_iterations: int | None, deadline: Deadline, stall: StallRule | None,
+                t_start: float) -> GraspPlan:
+        """The plan of ``candidate`` braked by the given spline ``params``, or by its NLP re-solved warm from them
+        within ``resolve_iterations`` (:meth:`simulate`)."""
+        stab = StabilizationSolution.given(params)
         t_stab = time.perf_counter()
         if resolve_iterations is not None:
             stab, note = self.resolved_stabilization(candidate, stab.params, resolve_iterations, deadline, stall)
@@ -266,7 +286,7 @@ class Planner:
         traj = joined(self.scenario, c.app.start_delay_s, c.approach_samples, c.tracking, stab_samples)
         return GraspPlan(self.scenario, state, c.app, c.tracking, stab, c.grasp, c.T_body_grasp_used, traj.phases,
                          traj.t, traj.q, traj.qd, traj.x_base, traj.phase_index, dict(timings),
-                         c.app.success and stab.success, notes)
+                         c.app.success and stab.success, notes, c)
 
 
 def plan_grasp(scenario: Scenario, target_state: TargetState, warm_start: GraspPlan | None = None) -> GraspPlan:

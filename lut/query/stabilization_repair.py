@@ -52,14 +52,19 @@ def single_cause(report: VerifyReport) -> bool:
 
 
 def repaired_plan(planner: Planner, state: TargetState, parameters: PlanParameters, report: VerifyReport,
-                  deadline: Deadline = NO_DEADLINE) -> tuple[GraspPlan, VerifyReport] | None:
+                  deadline: Deadline = NO_DEADLINE,
+                  made: GraspPlan | None = None) -> tuple[GraspPlan, VerifyReport] | None:
     """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
     :data:`REPAIR_ITERATIONS` iterations, given up once stalled by :data:`REPAIR_STALL`, ended at ``deadline``),
     when ``report`` (its verification) failed only from the grasp on and the repaired plan verifies feasible:
-    ``(plan, its report)``; else None."""
+    ``(plan, its report)``; else None. ``made``: that plan as ``planner`` simulated it, whose approach and tracking
+    are then reused (None: simulated again)."""
     if not stabilization_only(report):
         return None
-    plan = planner.simulate(state, parameters, REPAIR_ITERATIONS, deadline, REPAIR_STALL)
+    if made is not None:
+        plan = planner.restabilized(made, REPAIR_ITERATIONS, deadline, REPAIR_STALL)
+    else:
+        plan = planner.simulate(state, parameters, REPAIR_ITERATIONS, deadline, REPAIR_STALL)
     if not plan.stabilization.success:
         return None
     repaired = verify(plan)

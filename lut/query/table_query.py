@@ -235,7 +235,7 @@ class TableQuery:
             best = self.corner_plan(state, found, first, deadline, latency)
             latency["corners_s"] = time.perf_counter() - t0
             return best
-        fixed = self.repaired(state, found.parameters, report, deadline)
+        fixed = self.repaired(state, found.parameters, report, deadline, plan)
         latency["repair_s"] = time.perf_counter() - t0
         return first if fixed is None else (*fixed, found.corners, QuerySource.REPAIRED)
 
@@ -305,20 +305,20 @@ class TableQuery:
         """``made`` (the plan of ``parameters``) repaired (:meth:`repaired`) as ``(plan, report, its corners,
         "repaired")``, or None; the time it took added to ``latency["repair_s"]``."""
         t0 = time.perf_counter()
-        fixed = self.repaired(state, parameters, made[1], deadline)
+        fixed = self.repaired(state, parameters, made[1], deadline, made[0])
         latency["repair_s"] += time.perf_counter() - t0
         return None if fixed is None else (*fixed, made[2], QuerySource.REPAIRED)
 
-    def repaired(self, state: TargetState, parameters: PlanParameters, report: VerifyReport,
-                 deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:
+    def repaired(self, state: TargetState, parameters: PlanParameters, report: VerifyReport, deadline: Deadline,
+                 made: GraspPlan | None = None) -> tuple[GraspPlan, VerifyReport] | None:
         """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
         :data:`~lut.query.stabilization_repair.REPAIR_ITERATIONS` iterations, ended :data:`FINISH_RESERVE_S` before
         ``deadline``), when ``report`` (its verification) failed only from the grasp on and the repair verifies
-        feasible; else None."""
+        feasible; else None. ``made``: that plan as simulated here (its approach and tracking reused)."""
         if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
             return None
         return repaired_plan(self.planner, state, self._in_window(state, parameters), report,
-                             deadline.earlier(FINISH_RESERVE_S))
+                             deadline.earlier(FINISH_RESERVE_S), made)
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:
