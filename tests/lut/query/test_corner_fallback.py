@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -69,10 +70,11 @@ def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: 
     def simulate_and_verify(state, parameters, latency):
         corner = owner.get(id(parameters), "interpolated")
         tried.append(corner)
-        return object(), _report(corner in feasible, failures.get(corner, "braking"))
+        return SimpleNamespace(corner=corner), _report(corner in feasible, failures.get(corner, "braking"))
 
-    def repaired(state, parameters, report, deadline):
+    def repaired(state, parameters, report, deadline, made=None):
         corner = owner.get(id(parameters), "interpolated")
+        assert made is not None and made.corner == corner  # the plan just verified, handed to its repair
         tried.append(f"repair {corner}")
         return (object(), _report(True, "")) if corner in repairable else None
 
