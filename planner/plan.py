@@ -225,7 +225,7 @@ class Planner:
         """``simulate(plan.target_state, plan.parameters, resolve_iterations, deadline, stall)`` for a plan this planner
         assembled: the same plan, with its grasp's approach and tracking reused instead of simulated again."""
         if plan.candidate is None:
-            return self.simulate(plan.target_state, plan.parameters, resolve_iterations, deadline, stall)
+            raise ValueError("restabilized needs a plan a planner assembled (it has no grasp candidate)")
         return self._braked(plan.target_state, plan.candidate, plan.stabilization.params,
                             ["simulated from given parameters"], resolve_iterations, deadline, stall,
                             time.perf_counter())

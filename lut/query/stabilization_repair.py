@@ -18,9 +18,7 @@ from planner.verify.before_grasp import judged_before_grasp
 from planner.verify.verifier import VerifyReport, verify
 
 if TYPE_CHECKING:
-    from planner.model.target_state import TargetState
     from planner.plan import GraspPlan, Planner
-    from planner.plan_parameters import PlanParameters
 
 # IPOPT iterations a repair gets: the repairs that succeeded took 0-5 (flat_spin_I_energy's off-grid queries), the ones
 # that failed ran to 116-120 (24-32 s each; the demo's query spent 45 s on three of them, 18 s with this cap)
@@ -51,20 +49,15 @@ def single_cause(report: VerifyReport) -> bool:
     return stabilization_only(report) and (failed <= BRAKING or not failed & BRAKING)
 
 
-def repaired_plan(planner: Planner, state: TargetState, parameters: PlanParameters, report: VerifyReport,
-                  deadline: Deadline = NO_DEADLINE,
-                  made: GraspPlan | None = None) -> tuple[GraspPlan, VerifyReport] | None:
-    """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
-    :data:`REPAIR_ITERATIONS` iterations, given up once stalled by :data:`REPAIR_STALL`, ended at ``deadline``),
-    when ``report`` (its verification) failed only from the grasp on and the repaired plan verifies feasible:
-    ``(plan, its report)``; else None. ``made``: that plan as ``planner`` simulated it, whose approach and tracking
-    are then reused (None: simulated again)."""
+def repaired_plan(planner: Planner, made: GraspPlan, report: VerifyReport,
+                  deadline: Deadline = NO_DEADLINE) -> tuple[GraspPlan, VerifyReport] | None:
+    """``made`` (a plan ``planner`` simulated from given parameters) with its stabilization re-solved warm at its grasp
+    (within :data:`REPAIR_ITERATIONS` iterations, given up once stalled by :data:`REPAIR_STALL`, ended at
+    ``deadline``; its approach and tracking reused), when ``report`` (its verification) failed only from the grasp on
+    and the repaired plan verifies feasible: ``(plan, its report)``; else None."""
     if not stabilization_only(report):
         return None
-    if made is not None:
-        plan = planner.restabilized(made, REPAIR_ITERATIONS, deadline, REPAIR_STALL)
-    else:
-        plan = planner.simulate(state, parameters, REPAIR_ITERATIONS, deadline, REPAIR_STALL)
+    plan = planner.restabilized(made, REPAIR_ITERATIONS, deadline, REPAIR_STALL)
     if not plan.stabilization.success:
         return None
     repaired = verify(plan)

@@ -235,7 +235,7 @@ class TableQuery:
             best = self.corner_plan(state, found, first, deadline, latency)
             latency["corners_s"] = time.perf_counter() - t0
             return best
-        fixed = self.repaired(state, found.parameters, report, deadline, plan)
+        fixed = self.repaired(plan, report, deadline)
         latency["repair_s"] = time.perf_counter() - t0
         return first if fixed is None else (*fixed, found.corners, QuerySource.REPAIRED)
 
@@ -256,9 +256,9 @@ class TableQuery:
         Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
         in different families of solutions may collide or miss the grasp.
         """
-        later: list[tuple[PlanParameters, Attempt]] = []  # the both-cause plans, repaired last
+        later: list[Attempt] = []  # the both-cause plans, repaired last
         best, stage = first, Deadline.after(CORNER_STAGE_S)
-        fixed = self._repair_now_or_later(state, found.parameters, first, deadline, latency, later)
+        fixed = self._repair_now_or_later(first, deadline, latency, later)
         if fixed is not None:
             return fixed
         corners = [c for c in self.corner_candidates(state) if [c.corner] != found.corners]
@@ -270,29 +270,29 @@ class TableQuery:
             made = plan, report, [candidate.corner], QuerySource.CORNER
             if report.feasible:
                 return made
-            fixed = self._repair_now_or_later(state, candidate.parameters, made, deadline, latency, later)
+            fixed = self._repair_now_or_later(made, deadline, latency, later)
             if fixed is not None:
                 return fixed
             if violates_less(report, best[1]):
                 best = made
         # fewest failed checks first; the count alone, so that ties keep the order they were tried in
-        for parameters, made in sorted(later, key=lambda pm: violation(pm[1][1])[0]):
+        for made in sorted(later, key=lambda attempt: violation(attempt[1])[0]):
             if self._corners_out_of_time(deadline, stage):
                 break
-            fixed = self._timed_repair(state, parameters, made, deadline, latency)
+            fixed = self._timed_repair(made, deadline, latency)
             if fixed is not None:
                 return fixed
         return best
 
-    def _repair_now_or_later(self, state: TargetState, parameters: PlanParameters, made: Attempt, deadline: Deadline,
-                             latency: dict[str, float], later: list[tuple[PlanParameters, Attempt]]) -> Attempt | None:
-        """``made`` (the failed plan of ``parameters``) repaired now when it fails from one cause
+    def _repair_now_or_later(self, made: Attempt, deadline: Deadline, latency: dict[str, float],
+                             later: list[Attempt]) -> Attempt | None:
+        """``made`` (a failed plan) repaired now when it fails from one cause
         (:func:`~lut.query.stabilization_repair.single_cause`): the repaired attempt, or None; appended to ``later``
         when it fails from both after its grasp; left alone when it fails before its grasp."""
         if single_cause(made[1]):
-            return self._timed_repair(state, parameters, made, deadline, latency)
+            return self._timed_repair(made, deadline, latency)
         if stabilization_only(made[1]):
-            later.append((parameters, made))
+            later.append(made)
         return None
 
     @staticmethod
@@ -300,25 +300,23 @@ class TableQuery:
         """True when no more corner may be tried: the corner stage is over, or the solves need what is left."""
         return stage.passed or deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S
 
-    def _timed_repair(self, state: TargetState, parameters: PlanParameters, made: Attempt, deadline: Deadline,
-                      latency: dict[str, float]) -> Attempt | None:
-        """``made`` (the plan of ``parameters``) repaired (:meth:`repaired`) as ``(plan, report, its corners,
-        "repaired")``, or None; the time it took added to ``latency["repair_s"]``."""
+    def _timed_repair(self, made: Attempt, deadline: Deadline, latency: dict[str, float]) -> Attempt | None:
+        """``made`` repaired (:meth:`repaired`) as ``(plan, report, its corners, "repaired")``, or None; the time it
+        took added to ``latency["repair_s"]``."""
         t0 = time.perf_counter()
-        fixed = self.repaired(state, parameters, made[1], deadline, made[0])
+        fixed = self.repaired(made[0], made[1], deadline)
         latency["repair_s"] += time.perf_counter() - t0
         return None if fixed is None else (*fixed, made[2], QuerySource.REPAIRED)
 
-    def repaired(self, state: TargetState, parameters: PlanParameters, report: VerifyReport, deadline: Deadline,
-                 made: GraspPlan | None = None) -> tuple[GraspPlan, VerifyReport] | None:
-        """``parameters``' plan at ``state`` with its stabilization re-solved warm at the grasp it reaches (within
-        :data:`~lut.query.stabilization_repair.REPAIR_ITERATIONS` iterations, ended :data:`FINISH_RESERVE_S` before
-        ``deadline``), when ``report`` (its verification) failed only from the grasp on and the repair verifies
-        feasible; else None. ``made``: that plan as simulated here (its approach and tracking reused)."""
+    def repaired(self, plan: GraspPlan, report: VerifyReport,
+                 deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:
+        """``plan`` (a table plan as :meth:`simulate_and_verify` made it) with its stabilization re-solved warm at its
+        grasp (within :data:`~lut.query.stabilization_repair.REPAIR_ITERATIONS` iterations, ended
+        :data:`FINISH_RESERVE_S` before ``deadline``), when ``report`` (its verification) failed only from the grasp on
+        and the repair verifies feasible; else None."""
         if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
             return None
-        return repaired_plan(self.planner, state, self._in_window(state, parameters), report,
-                             deadline.earlier(FINISH_RESERVE_S), made)
+        return repaired_plan(self.planner, plan, report, deadline.earlier(FINISH_RESERVE_S))
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:

@@ -52,8 +52,9 @@ def carried(planner: Any, state: Any, parameters: Any) -> dict[str, Any]:
     from lut.query.stabilization_repair import repaired_plan
     from planner.verify.verifier import verify
 
-    report = verify(planner.simulate(state, parameters))
-    repaired = report.feasible or repaired_plan(planner, state, parameters, report) is not None
+    plan = planner.simulate(state, parameters)
+    report = verify(plan)
+    repaired = report.feasible or repaired_plan(planner, plan, report) is not None
     return {"as_is": bool(report.feasible), "repaired": bool(repaired),
             "failed": [c.name for c in report.checks.values() if not c.passed]}
 

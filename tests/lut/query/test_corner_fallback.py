@@ -72,9 +72,8 @@ def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: 
         tried.append(corner)
         return SimpleNamespace(corner=corner), _report(corner in feasible, failures.get(corner, "braking"))
 
-    def repaired(state, parameters, report, deadline, made=None):
-        corner = owner.get(id(parameters), "interpolated")
-        assert made is not None and made.corner == corner  # the plan just verified, handed to its repair
+    def repaired(made, report, deadline):
+        corner = made.corner  # the plan the query has just verified is the one repaired
         tried.append(f"repair {corner}")
         return (object(), _report(True, "")) if corner in repairable else None
 

@@ -16,7 +16,7 @@ from lut.query.table_query import TableQuery
 from planner.deadline import Deadline
 from planner.nlp.outcome import SolveOutcome
 from planner.plan_parameters import PlanParameters
-from planner.verify.before_grasp import BEFORE_THE_GRASP
+from planner.verify.before_grasp import BEFORE_THE_GRASP, failed_before_grasp
 from planner.verify.checks import CheckResult
 
 GOLDEN = Path(__file__).resolve().parents[2] / "data" / "ci_golden.h5"
@@ -66,19 +66,20 @@ def opened() -> TableQuery:
 
 def _braking_too_hard(opened: TableQuery):
     """A golden grid point's state, its plan with the stabilization spline scaled by 0.8 (the grasp torque then
-    exceeds its limit after the grasp only), that plan's verification, and the stored parameters."""
+    exceeds its limit after the grasp only) and that plan's verification, and the stored parameters."""
     point = opened.feasible[1]
     state = opened.grid.state_at(opened.grid.coordinates(point))
     stored = opened.points[point].parameters
     harsh = PlanParameters(stored.approach, 0.8 * np.asarray(stored.stabilization_params))
-    _, report = opened.simulate_and_verify(state, harsh, {})
-    return state, harsh, report, stored
+    made, report = opened.simulate_and_verify(state, harsh, {})
+    return state, harsh, made, report, stored
 
 
 def test_a_spline_that_brakes_too_hard_is_re_solved_and_the_approach_kept(opened):
-    state, harsh, report, stored = _braking_too_hard(opened)
+    _, _, made, report, stored = _braking_too_hard(opened)
     assert not report.checks["grasp_torque"].passed and stabilization_only(report)
-    fixed = opened.repaired(state, harsh, report, Deadline.after(100.0))
+    assert not failed_before_grasp(report)  # failed, but nothing before the grasp
+    fixed = opened.repaired(made, report, Deadline.after(100.0))
     assert fixed is not None
     plan, repaired = fixed
     assert repaired.feasible and "re-solved warm" in plan.notes[-1]
@@ -87,18 +88,23 @@ def test_a_spline_that_brakes_too_hard_is_re_solved_and_the_approach_kept(opened
 
 
 def test_a_repair_reuses_the_verified_plans_approach_and_tracking_and_gives_the_same_plan(opened):
-    """The query hands its repair the plan it just verified: the repair brakes that plan's grasp (no second
-    simulation of the approach and tracking, 0.3 s of a repair's 2-3.5 s) and is bit for bit the repair that simulates
-    them again."""
-    state, harsh, report, _ = _braking_too_hard(opened)
-    made, _ = opened.simulate_and_verify(state, harsh, {})
-    anew = opened.repaired(state, harsh, report, Deadline.after(100.0))
-    reused = opened.repaired(state, harsh, report, Deadline.after(100.0), made)
-    assert anew is not None and reused is not None and anew[1].feasible and reused[1].feasible
-    assert reused[0].candidate is made.candidate and anew[0].candidate is not made.candidate
+    """The query repairs the plan it has just verified: the repair brakes that plan's grasp (no second simulation of
+    the approach and tracking, 0.3 s of a repair's 2-3.5 s) and is bit for bit the re-solve that simulates them
+    again."""
+    state, harsh, made, report, _ = _braking_too_hard(opened)
+    anew = opened.planner.simulate(state, harsh, REPAIR_ITERATIONS, Deadline.after(100.0), REPAIR_STALL)
+    reused = opened.repaired(made, report, Deadline.after(100.0))
+    assert reused is not None and reused[1].feasible and anew.stabilization.success
+    assert reused[0].candidate is made.candidate and anew.candidate is not made.candidate
     for name in ("t", "q", "qd", "x_base"):
-        np.testing.assert_array_equal(getattr(reused[0], name), getattr(anew[0], name))
-    np.testing.assert_array_equal(reused[0].stabilization.params, anew[0].stabilization.params)
+        np.testing.assert_array_equal(getattr(reused[0], name), getattr(anew, name))
+    np.testing.assert_array_equal(reused[0].stabilization.params, anew.stabilization.params)
+
+
+def test_only_a_plan_a_planner_assembled_is_restabilized(opened):
+    _, _, made, _, _ = _braking_too_hard(opened)
+    with pytest.raises(ValueError, match="no grasp candidate"):
+        opened.planner.restabilized(replace(made, candidate=None), REPAIR_ITERATIONS)
 
 
 def test_a_repair_whose_violation_stops_falling_is_given_up_early(opened):
@@ -108,14 +114,14 @@ def test_a_repair_whose_violation_stops_falling_is_given_up_early(opened):
     state = opened.grid.state_at(opened.grid.coordinates(point))
     stored = opened.points[point].parameters
     doubled = PlanParameters(stored.approach, 2.0 * np.asarray(stored.stabilization_params))
-    _, report = opened.simulate_and_verify(state, doubled, {})
+    made, report = opened.simulate_and_verify(state, doubled, {})
     assert stabilization_only(report) and not single_cause(report)
     given_up = opened.planner.simulate(state, doubled, REPAIR_ITERATIONS, Deadline.after(100.0), REPAIR_STALL)
     assert given_up.stabilization.status == SolveOutcome.STALLED
     assert REPAIR_STALL.after <= given_up.stabilization.iterations < REPAIR_ITERATIONS
     whole = opened.planner.simulate(state, doubled, REPAIR_ITERATIONS, Deadline.after(100.0))
     assert not whole.stabilization.success and whole.stabilization.iterations == REPAIR_ITERATIONS
-    assert opened.repaired(state, doubled, report, Deadline.after(100.0)) is None
+    assert opened.repaired(made, report, Deadline.after(100.0)) is None
 
 
 def test_a_plan_that_fails_before_its_grasp_is_not_repaired(opened):
@@ -124,13 +130,14 @@ def test_a_plan_that_fails_before_its_grasp_is_not_repaired(opened):
     stored = opened.points[point].parameters
     # the approach spline's jerk parameters 30 % larger: the joints overspeed 7 s before the grasp
     rushed = PlanParameters(replace(stored.approach, params=1.3 * stored.approach.params), stored.stabilization_params)
-    _, report = opened.simulate_and_verify(state, rushed, {})
+    made, report = opened.simulate_and_verify(state, rushed, {})
     velocity = report.checks["joint_velocity"]
     assert not velocity.passed and velocity.t_s < report.t_grasp_s and not stabilization_only(report)
-    assert opened.repaired(state, rushed, report, Deadline.after(100.0)) is None
+    assert "joint_velocity" in [c.name for c in failed_before_grasp(report)]
+    assert opened.repaired(made, report, Deadline.after(100.0)) is None
 
 
 def test_no_repair_starts_without_the_time_to_finish_it(opened):
-    state, harsh, report, _ = _braking_too_hard(opened)
+    _, _, made, report, _ = _braking_too_hard(opened)
     assert stabilization_only(report)
-    assert opened.repaired(state, harsh, report, Deadline.after(3.0)) is None
+    assert opened.repaired(made, report, Deadline.after(3.0)) is None

@@ -1,6 +1,7 @@
 """Which failed checks no braking can change (``planner.verify.before_grasp``): by name, or by where the worst value
 lies against the grasp instant, at the instant's edges on purpose (exactly at it, within the join tolerance, just
-before it), and on a real plan whose joints overspeed before its grasp."""
+before it). Real plans: tests/lut/query/test_stabilization_repair.py (a braking too harsh, joints overspeeding before
+the grasp) and tests/planner/test_plan_retry.py (a rushed approach)."""
 
 from __future__ import annotations
 
