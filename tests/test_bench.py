@@ -25,6 +25,7 @@ sys.path.insert(0, str(ROOT / "scripts"))  # the benchmark's sections are script
 from bench_sections import carry, coverage, coverage_tables  # noqa: E402
 from bench_sections.coverage_runs import CliRun, failure_reasons, run_record  # noqa: E402
 from bench_sections.envelope import flat_spin_state, major_axis_body, tumble_state, wxyz  # noqa: E402
+from bench_sections.failure_kinds import FailureKind, cut_by_the_budget, failure_kind  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 LIBRARIES = ("numpy", "scipy", "pin", "casadi", "python-fcl", "h5py", "joblib", "distributed", "lutgen")
@@ -201,7 +202,7 @@ def test_only_reruns_the_named_section_and_keeps_the_others(run_path, tmp_path):
 
 KIND_NAMES = ("scenario_I_flat_spin", "scenario_II_flat_spin", "scenario_I_tumble", "scenario_II_tumble")
 SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "failures_by_first_reason",
-                "over_budget", "killed", "runs")
+                "failures_by_kind", "cut_by_the_budget", "over_budget", "killed", "runs")
 RECORD_KEYS = ("command", "exit_code", "wall_s", "feasible_on_time", "reasons", "notes", "source", "violations",
                "solver", "start_delay_s", "free_axis_angle_deg", "refine_failure", "last_line")
 
@@ -224,6 +225,9 @@ def _assert_summary(entry: dict[str, Any], command: str, what: str) -> None:
             tally[reason["reason"]] = tally.get(reason["reason"], 0) + 1
     assert entry["reasons"] == tally, what
     assert sum(entry["failures_by_first_reason"].values()) == entry["states"] - entry["feasible_on_time"], what
+    assert sum(entry["failures_by_kind"].values()) == entry["states"] - entry["feasible_on_time"], what
+    assert set(entry["failures_by_kind"]) <= {k.value for k in FailureKind}, what
+    assert entry["cut_by_the_budget"] == sum(any(x["reason"] == "budget ran out" for x in r["reasons"]) for r in runs)
     assert entry["killed"] == sum(r["exit_code"] is None for r in runs), what
 
 
@@ -323,6 +327,61 @@ def test_failure_reasons_without_a_plan_file(run, expected):
     reasons = failure_reasons(run, budget_s=100.0)
     assert [r["reason"] for r in reasons] == expected
     assert all(r["detail"] for r in reasons)
+
+
+def _stored_infeasible_plan() -> dict[str, Any]:
+    """The metrics of a stored scenario II tumble plan verify refuses (a collision during its tracking, and braking)."""
+    return json.loads(gzip.open(ROOT / "tests/data/truth/plan_scenario_II_tumble_10.json.gz", "rt").read())["metrics"]
+
+
+def test_failure_kind_of_a_stored_plan_is_read_from_where_its_checks_fail():
+    metrics = _stored_infeasible_plan()
+    reasons = failure_reasons(CliRun(2, 80.0, "", "", metrics), budget_s=100.0)
+    phases = {r["reason"]: r["phase"] for r in reasons}
+    assert phases["collision"] == "tracking" and phases["grasp_torque"] == "stabilization"  # the premise
+    assert failure_kind(reasons) is FailureKind.NO_GRASP_HELD and not cut_by_the_budget(reasons)
+    # the same plan with only its checks from the grasp on failing: the grasp held, the braking did not
+    braking = [r for r in reasons if r["phase"] == "stabilization"]
+    assert braking and failure_kind(braking) is FailureKind.BRAKING
+    # its deadline cut the braking short: still braking (where the solve stood), and counted as cut
+    cut = [{"reason": "budget ran out", "detail": "stabilization Out_Of_Time"}, *braking]
+    assert failure_kind(cut) is FailureKind.BRAKING and cut_by_the_budget(cut)
+    # the same plan late: over budget, whatever else failed
+    late = failure_reasons(CliRun(2, 120.0, "", "", metrics), budget_s=100.0)
+    assert failure_kind(late) is FailureKind.OVER_BUDGET
+
+
+def _check(name: str, phase: str | None) -> dict[str, Any]:
+    return {"reason": name, "phase": phase, "value": 1.0, "limit": 0.5, "margin": -0.5, "where": ""}
+
+
+@pytest.mark.parametrize(("reasons", "kind"), [
+    ([], None),
+    ([_check("grasp_torque", "stabilization"), _check("collision", "stabilization")], FailureKind.BRAKING),
+    # a grasp missed at its instant is not the braking's, even when the braking fails too
+    ([_check("grasp_torque", "stabilization"), _check("grasp_position", "grasp")], FailureKind.NO_GRASP_HELD),
+    ([_check("collision", "approach")], FailureKind.NO_GRASP_HELD),
+    ([_check("joint_velocity", None)], FailureKind.UNEXPLAINED),  # no phase: nothing says where
+    ([_check("grasp_torque", "stabilization"), _check("momentum_chaser", None)], FailureKind.UNEXPLAINED),
+    ([{"reason": "infeasible", "detail": "INFEASIBLE"}], FailureKind.UNEXPLAINED),
+    ([{"reason": "budget ran out", "detail": "…"}], FailureKind.UNEXPLAINED),
+    ([{"reason": "over budget", "detail": "130 s"}], FailureKind.OVER_BUDGET),  # feasible, but late
+])
+def test_failure_kind_of_given_reasons(reasons, kind):
+    assert failure_kind(reasons) is kind
+
+
+@pytest.mark.parametrize(("run", "kind"), [
+    (CliRun(0, 30.0, "FEASIBLE\n", "", None), None),
+    (CliRun(None, 130.0, "", "built in 3.8 s; solving…", None), FailureKind.OVER_BUDGET),
+    (CliRun(2, 6.5, "", "INFEASIBLE (1.5 s): out of reach: no meeting time", None), FailureKind.OUT_OF_REACH),
+    (CliRun(2, 9.0, "", "INFEASIBLE (9.0 s): no plan: the solve gave none", None), FailureKind.NO_PLAN),
+    (CliRun(1, 2.0, "", "error: --attitude: not a unit quaternion", None), FailureKind.BUG),
+    (CliRun(70, 2.0, "", "internal error: …", None), FailureKind.BUG),
+    (CliRun(-11, 9.0, "", "", None), FailureKind.BUG),
+])
+def test_failure_kind_of_a_run_without_a_plan_file(run, kind):
+    assert failure_kind(failure_reasons(run, budget_s=100.0)) is kind
 
 
 def test_a_querys_latency_line_is_read_stage_by_stage():

@@ -24,10 +24,11 @@ from bench_sections.envelope import (
     major_axis_body,
     tumble_state,
 )
+from bench_sections.failure_kinds import cut_by_the_budget, failure_kind
 
 SEED_SALT = 20  # the coverage states' seed is (--seed, issue 20, kind)
 SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "failures_by_first_reason",
-                "over_budget", "killed", "runs")
+                "failures_by_kind", "cut_by_the_budget", "over_budget", "killed", "runs")
 PLAN_P95_BAR_S, QUERY_P95_BAR_S, QUERY_FEASIBLE_BAR = 60.0, 30.0, 0.98
 BAR_STATES = 20  # the issue measures its bars on ≥ 20 states per kind
 
@@ -60,13 +61,17 @@ def kind_states(kind: Kind, n: int, seed: int) -> list[EnvelopeState]:
 
 def summary(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Feasible-on-time fraction, wall-time statistics with p95 (s), reasons tallied (every failing check; and one
-    per failed run, its first: out of reach, budget ran out, or the first failing check), and the records."""
+    per failed run, its first: out of reach, budget ran out, or the first failing check), the failures by kind
+    (:mod:`bench_sections.failure_kinds`) and how many of them the plan's deadline cut short, and the records."""
     ok = sum(r["feasible_on_time"] for r in records)
     tally = Counter(reason["reason"] for r in records for reason in r["reasons"])
     first = Counter(r["reasons"][0]["reason"] for r in records if r["reasons"])
     return {"states": len(records), "feasible_on_time": ok, "feasible_fraction": ok / len(records),
             "wall_s": stats_p95([r["wall_s"] for r in records]), "reasons": dict(tally.most_common()),
             "failures_by_first_reason": dict(first.most_common()),
+            "failures_by_kind": dict(Counter(failure_kind(r["reasons"]).value for r in records if r["reasons"])
+                                     .most_common()),
+            "cut_by_the_budget": sum(cut_by_the_budget(r["reasons"]) for r in records),
             "over_budget": sum(any(x["reason"] == "over budget" for x in r["reasons"]) for r in records),
             "killed": sum(r["exit_code"] is None for r in records), "runs": records}
 

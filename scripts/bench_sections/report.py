@@ -111,9 +111,10 @@ def _runs(entry: dict[str, Any]) -> str:
     if entry.get("runs") is None:
         return f"skipped: {entry.get('skipped')}"
     wall = entry["wall_s"]
-    reasons = ", ".join(f"{k} {v}" for k, v in entry["failures_by_first_reason"].items()) or "none"
+    kinds = ", ".join(f"{k} {v}" for k, v in entry["failures_by_kind"].items()) or "none"
+    cut = f" ({entry['cut_by_the_budget']} cut short by the budget)" if entry["cut_by_the_budget"] else ""
     return (f"{entry['feasible_on_time']}/{entry['states']} feasible on time; wall p50 {wall['median']:.1f}, "
-            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; failures by first reason: {reasons}")
+            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; failures by kind: {kinds}{cut}")
 
 
 def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:

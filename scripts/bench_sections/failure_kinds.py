@@ -1,0 +1,55 @@
+"""What kind of failure a coverage run is (issue 20: every failure explained by kind, not by a timeout), from the
+reasons its record names (:func:`bench_sections.coverage_runs.failure_reasons`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from enum import StrEnum
+from typing import Any
+
+from bench_sections.coverage_runs import BUDGET_RAN_OUT, EXIT_MEANINGS, OVER_BUDGET
+
+OUT_OF_REACH = "out of reach"
+NO_PLAN = "no plan"
+# a run's reasons that say the bench or the planner is wrong (an infeasible exit is the state's, not a bug)
+BUGS = frozenset(meaning for code, meaning in EXIT_MEANINGS.items() if code != 2)
+# the phases of a failed check (failed_checks) that lie before the braking: what no braking can change
+BEFORE_THE_GRASP = frozenset({"approach", "tracking", "grasp"})
+
+
+class FailureKind(StrEnum):
+    """Why a state got no verified plan on time, in the order a run is matched against them."""
+
+    BUG = "bug"  # bad input, a usage error, a crash: the bench or the planner is wrong, not the state
+    OVER_BUDGET = "over budget"  # late or killed: the product's promise broken, whatever else failed
+    OUT_OF_REACH = "out of reach"  # no meeting time brings the grasp within the arm's reach: refused before solving
+    NO_PLAN = "no plan"  # a query whose solves gave no plan and whose table had none near the state
+    NO_GRASP_HELD = "no grasp held"  # verify refuses the plan before its grasp: the approach, the tracking, the grasp
+    BRAKING = "braking"  # the grasp held; every failed check lies in the braking, from the grasp on
+    UNEXPLAINED = "unexplained"  # infeasible, and no failed check says where
+
+
+def failure_kind(reasons: Sequence[dict[str, Any]]) -> FailureKind | None:
+    """The kind of a run's failure from its ``reasons`` (None: no reason, the run gave a verified plan on time)."""
+    names = {r["reason"] for r in reasons}
+    phases = {r.get("phase") for r in reasons if r["reason"] not in (BUDGET_RAN_OUT, OVER_BUDGET)}
+    if not reasons:
+        return None
+    if names & BUGS or any(n.startswith("exit ") for n in names):
+        return FailureKind.BUG
+    if OVER_BUDGET in names:
+        return FailureKind.OVER_BUDGET
+    if OUT_OF_REACH in names:
+        return FailureKind.OUT_OF_REACH
+    if NO_PLAN in names:
+        return FailureKind.NO_PLAN
+    if phases & BEFORE_THE_GRASP:
+        return FailureKind.NO_GRASP_HELD
+    if phases == {"stabilization"}:
+        return FailureKind.BRAKING
+    return FailureKind.UNEXPLAINED
+
+
+def cut_by_the_budget(reasons: Sequence[dict[str, Any]]) -> bool:
+    """True when the plan's own deadline ended a solve: its failed checks are where that solve stood."""
+    return any(r["reason"] == BUDGET_RAN_OUT for r in reasons)
