@@ -371,6 +371,14 @@ def test_failure_kind_of_given_reasons(reasons, kind):
     assert failure_kind(reasons) is kind
 
 
+def test_a_query_out_of_reach_is_out_of_reach_whatever_its_table_plan_fails():
+    table_plan = [_check("grasp_position", "grasp"), _check("grasp_torque", "stabilization")]
+    assert failure_kind(table_plan) is FailureKind.NO_GRASP_HELD  # the premise: the table's plan read alone
+    assert failure_kind(table_plan, "out of reach: no meeting time of the window") is FailureKind.OUT_OF_REACH
+    assert failure_kind(table_plan, "killed at its time limit") is FailureKind.NO_GRASP_HELD
+    assert failure_kind([], "out of reach: …") is None  # a feasible answer is not a failure
+
+
 @pytest.mark.parametrize(("run", "kind"), [
     (CliRun(0, 30.0, "FEASIBLE\n", "", None), None),
     (CliRun(None, 130.0, "", "built in 3.8 s; solving…", None), FailureKind.OVER_BUDGET),

@@ -29,8 +29,10 @@ class FailureKind(StrEnum):
     UNEXPLAINED = "unexplained"  # infeasible, and no failed check says where
 
 
-def failure_kind(reasons: Sequence[dict[str, Any]]) -> FailureKind | None:
-    """The kind of a run's failure from its ``reasons`` (None: no reason, the run gave a verified plan on time)."""
+def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None = None) -> FailureKind | None:
+    """The kind of a run's failure from its ``reasons`` (None: no reason, the run gave a verified plan on time) and,
+    for a query, why its solve did not finish: a query answers a state out of reach with its table's plan, whose
+    failed checks are the table's, not the state's."""
     names = {r["reason"] for r in reasons}
     phases = {r.get("phase") for r in reasons if r["reason"] not in (BUDGET_RAN_OUT, OVER_BUDGET)}
     if not reasons:
@@ -39,7 +41,7 @@ def failure_kind(reasons: Sequence[dict[str, Any]]) -> FailureKind | None:
         return FailureKind.BUG
     if OVER_BUDGET in names:
         return FailureKind.OVER_BUDGET
-    if OUT_OF_REACH in names:
+    if OUT_OF_REACH in names or (refine_failure or "").startswith(OUT_OF_REACH):
         return FailureKind.OUT_OF_REACH
     if NO_PLAN in names:
         return FailureKind.NO_PLAN
