@@ -412,6 +412,14 @@ def test_summary_tallies_reasons_and_bars_judge_them():
     assert s["feasible_on_time"] == 1 and s["feasible_fraction"] == 1 / 3 and s["killed"] == 0
     assert s["reasons"] == {"collision": 2, "grasp_torque": 1} and s["wall_s"]["max"] == 70.0
     assert s["failures_by_first_reason"] == {"collision": 2}
+    assert s["failures_by_kind"] == {"unexplained": 2} and s["cut_by_the_budget"] == 0  # these reasons name no phase
+    phased = [record(False, 50.0, "collision"), record(False, 96.0, "budget ran out", "grasp_torque"),
+              record(False, 1.4, "out of reach")]
+    phased[0]["reasons"][0]["phase"] = "tracking"
+    phased[1]["reasons"][1]["phase"] = "stabilization"
+    p = coverage.summary(phased)
+    assert p["failures_by_kind"] == {"no grasp held": 1, "braking": 1, "out of reach": 1}
+    assert p["cut_by_the_budget"] == 1
     plans = {k.name: coverage.summary([record(True, 10.0)] * 20) for k in coverage.KINDS}
     late = [record(False, 101.0, "over budget")] * 2
     plans["scenario_II_tumble"] = coverage.summary([record(True, 10.0)] * 18 + late)

@@ -69,7 +69,7 @@ def summary(records: list[dict[str, Any]]) -> dict[str, Any]:
     return {"states": len(records), "feasible_on_time": ok, "feasible_fraction": ok / len(records),
             "wall_s": stats_p95([r["wall_s"] for r in records]), "reasons": dict(tally.most_common()),
             "failures_by_first_reason": dict(first.most_common()),
-            "failures_by_kind": dict(Counter(failure_kind(r["reasons"], r["refine_failure"]).value
+            "failures_by_kind": dict(Counter(failure_kind(r["reasons"], r.get("refine_failure")).value
                                              for r in records if r["reasons"]).most_common()),
             "cut_by_the_budget": sum(cut_by_the_budget(r["reasons"]) for r in records),
             "over_budget": sum(any(x["reason"] == "over budget" for x in r["reasons"]) for r in records),
