@@ -217,8 +217,8 @@ class Planner:
         if params is None:
             params = candidate.smooth_stop_params()
         # given parameters need no NLP: a query that only simulates and verifies never builds one
-        return self._braked(state, candidate, np.asarray(params, dtype=float), ["simulated from given parameters"],
-                            resolve_iterations, deadline, stall, t_start)
+        return self._braked(state, candidate, np.asarray(params, dtype=float), resolve_iterations, deadline, stall,
+                            t_start)
 
     def restabilized(self, plan: GraspPlan, resolve_iterations: int, deadline: Deadline = NO_DEADLINE,
                      stall: StallRule | None = None) -> GraspPlan:
@@ -226,16 +226,14 @@ class Planner:
         assembled: the same plan, with its grasp's approach and tracking reused instead of simulated again."""
         if plan.candidate is None:
             raise ValueError("restabilized needs a plan a planner assembled (it has no grasp candidate)")
-        return self._braked(plan.target_state, plan.candidate, plan.stabilization.params,
-                            ["simulated from given parameters"], resolve_iterations, deadline, stall,
-                            time.perf_counter())
+        return self._braked(plan.target_state, plan.candidate, plan.stabilization.params, resolve_iterations, deadline,
+                            stall, time.perf_counter())
 
-    def _braked(self, state: TargetState, candidate: GraspCandidate, params: Array, notes: list[str],
-                resolve_iterations: int | None, deadline: Deadline, stall: StallRule | None,
-                t_start: float) -> GraspPlan:
+    def _braked(self, state: TargetState, candidate: GraspCandidate, params: Array, resolve_iterations: int | None,
+                deadline: Deadline, stall: StallRule | None, t_start: float) -> GraspPlan:
         """The plan of ``candidate`` braked by the given spline ``params``, or by its NLP re-solved warm from them
         within ``resolve_iterations`` (:meth:`simulate`)."""
-        stab = StabilizationSolution.given(params)
+        stab, notes = StabilizationSolution.given(params), ["simulated from given parameters"]
         t_stab = time.perf_counter()
         if resolve_iterations is not None:
             stab, note = self.resolved_stabilization(candidate, stab.params, resolve_iterations, deadline, stall)

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from bench_sections.common import ROOT, Settings, load_scenario_named, relative, skipped, stats_p95
-from bench_sections.coverage_runs import plan_takes_budget, run_cli, run_record, state_args
+from bench_sections.coverage_runs import OVER_BUDGET, plan_takes_budget, run_cli, run_record, state_args
 from bench_sections.coverage_tables import find_tables
 from bench_sections.envelope import (
     FLAT_SPIN_RATE_DEG_S,
@@ -72,7 +72,7 @@ def summary(records: list[dict[str, Any]]) -> dict[str, Any]:
             "failures_by_kind": dict(Counter(failure_kind(r["reasons"], r.get("refine_failure")).value
                                              for r in records if r["reasons"]).most_common()),
             "cut_by_the_budget": sum(cut_by_the_budget(r["reasons"]) for r in records),
-            "over_budget": sum(any(x["reason"] == "over budget" for x in r["reasons"]) for r in records),
+            "over_budget": sum(any(x["reason"] == OVER_BUDGET for x in r["reasons"]) for r in records),
             "killed": sum(r["exit_code"] is None for r in records), "runs": records}
 
 

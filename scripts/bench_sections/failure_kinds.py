@@ -33,10 +33,10 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
     """The kind of a run's failure from its ``reasons`` (None: no reason, the run gave a verified plan on time) and,
     for a query, why its solve did not finish: a query answers a state out of reach with its table's plan, whose
     failed checks are the table's, not the state's."""
-    names = {r["reason"] for r in reasons}
-    phases = {r.get("phase") for r in reasons if r["reason"] not in (BUDGET_RAN_OUT, OVER_BUDGET)}
     if not reasons:
         return None
+    names = {r["reason"] for r in reasons}
+    phases = {r.get("phase") for r in reasons if r["reason"] not in (BUDGET_RAN_OUT, OVER_BUDGET)}
     if names & BUGS or any(n.startswith("exit ") for n in names):
         return FailureKind.BUG
     if OVER_BUDGET in names:
