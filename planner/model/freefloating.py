@@ -64,7 +64,7 @@ def quat_rotation_function() -> ca.Function:
     return ca.Function("quat_rotation", [quat], [quat_to_rotation_sym(quat)], ["quat_wxyz"], ["R"])
 
 
-def _quat_times_pure(quat: Symbolic, omega: Symbolic) -> Symbolic:
+def quat_times_pure_sym(quat: Symbolic, omega: Symbolic) -> Symbolic:
     """``quat ⊗ [0, ω]``."""
     w, x, y, z = quat[0], quat[1], quat[2], quat[3]
     a, b, c = omega[0], omega[1], omega[2]
@@ -154,7 +154,7 @@ def base_pose_rate_sym(mm: MomentumMap, x_base: Symbolic, qd: Symbolic, h_world:
     R = quat_to_rotation_sym(x_base[3:7])
     h_base = ca.vertcat(ca.mtimes(R.T, h_world[:3]), ca.mtimes(R.T, h_world[3:]))
     twist = base_twist_sym(mm, qd, h_base)
-    return ca.vertcat(ca.mtimes(R, twist[:3]), 0.5 * _quat_times_pure(x_base[3:7], twist[3:]))
+    return ca.vertcat(ca.mtimes(R, twist[:3]), 0.5 * quat_times_pure_sym(x_base[3:7], twist[3:]))
 
 
 @dataclass
@@ -293,7 +293,7 @@ def pose_rk4_step() -> ca.Function:
 
     def rate(xk: ca.SX, twist: ca.SX) -> ca.SX:
         return ca.vertcat(ca.mtimes(quat_to_rotation_sym(xk[3:7]), twist[:3]),
-                          0.5 * _quat_times_pure(xk[3:7], twist[3:]))
+                          0.5 * quat_times_pure_sym(xk[3:7], twist[3:]))
 
     k1 = rate(x, t0)
     k2 = rate(x + 0.5 * dt * k1, tm)

@@ -31,6 +31,7 @@ from planner.model.freefloating import FreeFloatingModel
 from planner.model.rotation import axis_angle_to_matrix
 from planner.model.target import TargetMotion
 from planner.phases.tracking_kinematics import TrackingKinematics
+from planner.phases.tracking_law import WELL_CONDITIONED, TrackingLaw
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, blend, gain_ramp
 
 Array = NDArray[np.float64]
@@ -77,6 +78,7 @@ class TrackingController:
         self.scenario = scenario
         self.ff = ff
         self.kinematics = TrackingKinematics.of(ff)
+        self.law = TrackingLaw.of(ff)
 
     def simulate(self, motion: TargetMotion, t_start_s: float, q0: Array, x_base0: Array,
                  q_nodes: Array | None = None) -> TrackingResult:
@@ -94,7 +96,7 @@ class TrackingController:
         kinematics = self.kinematics.evaluator()  # this simulation's own buffers
         at0 = kinematics(q0, x_base0)
         desired = _DesiredPose(sc, motion, t_start_s, at0.R_world_ee, at0.p_world_ee_m, _stage_times(steps, dt))
-        law = _RateLaw(sc, kinematics, desired, _posture_reference(q0, q_nodes, T))
+        law = _RateLaw(sc, kinematics, self.law.evaluator(), desired, _posture_reference(q0, q_nodes, T))
         ts = t_start_s + dt * np.arange(steps + 1)
         qs, qds, xs, xd_end = _integrate(law, desired.stages, steps, dt, q0, x_base0)
         # joint acceleration at the grasp instant: derivative of q̇ along the closed-loop flow
@@ -186,11 +188,13 @@ def _posture_reference(q0: Array, q_nodes: Array | None, T: float) -> CubicHermi
 
 
 class _RateLaw:
-    """The IK law: joint rates [rad/s] and base-pose rate at phase time t, with the smooth rate cap."""
+    """The IK law: joint rates [rad/s] and base-pose rate at phase time t, with the smooth rate cap; one compiled call
+    (:mod:`planner.phases.tracking_law`), numpy's SVD pseudo-inverse where the QR one is ill-conditioned."""
 
-    def __init__(self, sc: Scenario, kinematics: TrackingKinematics, desired: _DesiredPose,
+    def __init__(self, sc: Scenario, kinematics: TrackingKinematics, law: TrackingLaw, desired: _DesiredPose,
                  q_ref: CubicHermiteSpline | None) -> None:
         self.kinematics = kinematics
+        self.law = law
         self.desired = desired
         self.q_ref = q_ref
         self.q_ref_d = None if q_ref is None else q_ref.derivative()
@@ -198,6 +202,7 @@ class _RateLaw:
         self.kn = sc.tracking.nullspace_gain
         self.T = sc.phases.tracking_s
         self.qd_max = sc.robot.qd_max
+        self.gains = np.concatenate([[self.K, self.kn, RATE_CAP_FRACTION, RATE_CAP_POWER], self.qd_max])
         self.identity = np.eye(len(self.qd_max))  # the null-space projector's I
         self.peak_demand = 0.0  # max over the calls of |q̇ asked by the law| / q̇_max, before the cap
         self.peak_time_s = 0.0  # the phase time of that call [s]
@@ -205,6 +210,7 @@ class _RateLaw:
         stages = list(dict.fromkeys(desired.stages))
         refs = [None] * len(stages) if q_ref is None else zip(q_ref(stages), self.q_ref_d(stages), strict=True)
         self.at_stage = {t: (gain_ramp(t, self.T), ref) for t, ref in zip(stages, refs, strict=True)}
+        self.law_inputs: dict[float, tuple[Array, Array]] = {}  # phase time → the law's desired and posture inputs
 
     def _time_terms(self, t: float) -> tuple[float, tuple[Array, Array] | None]:
         """The gain ramp and the posture reference ``(q_ref, q̇_ref)`` [rad, rad/s] (None without one) at ``t``."""
@@ -212,8 +218,27 @@ class _RateLaw:
             return self.at_stage[t]
         return gain_ramp(t, self.T), None if self.q_ref is None else (self.q_ref(t), self.q_ref_d(t))
 
+    def _inputs(self, t: float) -> tuple[Array, Array]:
+        """The compiled law's ``desired`` and ``posture`` inputs at ``t`` (:func:`tracking_law_function`)."""
+        if t not in self.law_inputs:
+            R_d, p_d = self.desired.pose(t)
+            ramp, ref = self._time_terms(t)
+            q_ref, qd_ref = (self.identity[0] * 0.0,) * 2 if ref is None else ref
+            self.law_inputs[t] = (np.concatenate([R_d.ravel(order="F"), p_d, self.desired.twist(t)]),
+                                  np.concatenate([[ramp], q_ref, qd_ref, [0.0 if ref is None else 1.0]]))
+        return self.law_inputs[t]
+
     def rates(self, t: float, q: Array, x: Array) -> tuple[Array, Array]:
         """``q̇`` (7,) [rad/s] and ``ẋ_base`` (7,) at phase time ``t`` [s], joints ``q``, base pose ``x``."""
+        at = self.law(q, x, *self._inputs(t), self.gains)
+        if at.conditioning < WELL_CONDITIONED:
+            return self._rates_by_svd(t, q, x)
+        if at.demand > self.peak_demand:
+            self.peak_demand, self.peak_time_s = at.demand, t
+        return at.qd, at.x_base_rate
+
+    def _rates_by_svd(self, t: float, q: Array, x: Array) -> tuple[Array, Array]:
+        """:meth:`rates` with numpy's SVD pseudo-inverse, which drops a direction a singular pose has lost."""
         at = self.kinematics(q, x)
         J = at.J_world
         R_d, p_d = self.desired.pose(t)

@@ -45,7 +45,7 @@ def tracking_kinematics_function(ff: FreeFloatingModel) -> ca.Function:
     return ca.Function("tracking_kinematics", [q, x], [ca.vertcat(*(ca.vec(part) for part in parts))])
 
 
-class _Buffered:
+class Buffered:
     """A CasADi Function called through a FunctionBuffer: its inputs and its one output live in numpy arrays it
     holds (a third of the overhead of an ordinary call). Not to be shared between threads."""
 
@@ -74,7 +74,7 @@ class TrackingKinematics:
         shapes = [(6, n_joints), (3, 3), (3,), (n_joints,)]
         ends = np.cumsum([int(np.prod(shape)) for shape in shapes])
         self._slices = [(slice(end - int(np.prod(shape)), end), shape) for end, shape in zip(ends, shapes, strict=True)]
-        self._kinematics, self._base_twist = _Buffered(kinematics), _Buffered(base_twist)
+        self._kinematics, self._base_twist = Buffered(kinematics), Buffered(base_twist)
         self._no_momentum = np.zeros(6)
 
     @classmethod

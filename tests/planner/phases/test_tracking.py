@@ -13,14 +13,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from lut.output.plan_file import load_plan
-from planner.config.scenario import load_scenario
-from planner.model.freefloating import FreeFloatingModel
-from planner.model.target import TargetMotion, TargetState
-from planner.phases.tracking import TrackingController, TrackingResult
-from planner.phases.tracking_profile import TRACKING_NODES
+from planner.model.target import TargetMotion
+from planner.phases.tracking import TrackingResult
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -44,24 +39,6 @@ class _CountingMotion:
 
     def grasp_twist(self, times_s):
         return self.motion.grasp_twist(times_s)
-
-
-@pytest.fixture(scope="module")
-def tracking_start():
-    scenario = load_scenario(ROOT / "configs" / "scenarios" / "scenario_II.toml")
-    doc = load_plan(ROOT / "tests" / "data" / "plan_II.json.gz")
-    s = doc["samples"]
-    t_start = doc["phases"]["tracking"][0]
-    i = int(np.argmin(np.abs(np.asarray(s["t"]) - t_start)))
-    x_base = np.concatenate([s["base_position"][i], s["base_wxyz"][i]])
-    state = TargetState(np.asarray(doc["target"]["attitude_wxyz"]), np.asarray(doc["target"]["omega_body_rad_s"]))
-    motion = scenario.target.motion(state, doc["phases"]["stabilization"][1] + 1.0)
-    controller = TrackingController(scenario, FreeFloatingModel(scenario.robot))
-    # the posture the null space is pulled toward: the plan's own configurations at the tracking nodes
-    t = np.asarray(s["t"])
-    T = scenario.phases.tracking_s
-    q_nodes = np.array([s["q"][int(np.argmin(np.abs(t - (t_start + f * T))))] for f in TRACKING_NODES])
-    return controller, motion, float(t[i]), np.asarray(s["q"][i]), x_base, q_nodes
 
 
 def _simulate(tracking_start, row_by_row: bool) -> tuple[TrackingResult, int]:
