@@ -223,7 +223,7 @@ class _RateLaw:
         if t not in self.law_inputs:
             R_d, p_d = self.desired.pose(t)
             ramp, ref = self._time_terms(t)
-            q_ref, qd_ref = (self.identity[0] * 0.0,) * 2 if ref is None else ref
+            q_ref, qd_ref = (np.zeros(len(self.qd_max)),) * 2 if ref is None else ref
             self.law_inputs[t] = (np.concatenate([R_d.ravel(order="F"), p_d, self.desired.twist(t)]),
                                   np.concatenate([[ramp], q_ref, qd_ref, [0.0 if ref is None else 1.0]]))
         return self.law_inputs[t]
