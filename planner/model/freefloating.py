@@ -64,7 +64,7 @@ def quat_rotation_function() -> ca.Function:
     return ca.Function("quat_rotation", [quat], [quat_to_rotation_sym(quat)], ["quat_wxyz"], ["R"])
 
 
-def quat_times_pure_sym(quat: Symbolic, omega: Symbolic) -> Symbolic:
+def _quat_times_pure(quat: Symbolic, omega: Symbolic) -> Symbolic:
     """``quat ⊗ [0, ω]``."""
     w, x, y, z = quat[0], quat[1], quat[2], quat[3]
     a, b, c = omega[0], omega[1], omega[2]
@@ -74,6 +74,12 @@ def quat_times_pure_sym(quat: Symbolic, omega: Symbolic) -> Symbolic:
         w * b - x * c + z * a,
         w * c + x * b - y * a,
     )
+
+
+def pose_rate_sym(x_base: Symbolic, twist_base: Symbolic, R_world_base: Symbolic) -> Symbolic:
+    """Rate of the base pose ``x = [p_world_base (3), quat_world_base (4)]`` at the base twist ``[v_b; ω_b]`` (base
+    frame): ``[R v_b; ½ q ⊗ [0, ω_b]]``, ``R_world_base`` the pose's rotation (computed once by the caller)."""
+    return ca.vertcat(ca.mtimes(R_world_base, twist_base[:3]), 0.5 * _quat_times_pure(x_base[3:7], twist_base[3:]))
 
 
 @dataclass(frozen=True)
@@ -153,8 +159,7 @@ def base_pose_rate_sym(mm: MomentumMap, x_base: Symbolic, qd: Symbolic, h_world:
     """Time derivative of the base pose ``x = [p_world_base (3), quat_world_base (4)]``."""
     R = quat_to_rotation_sym(x_base[3:7])
     h_base = ca.vertcat(ca.mtimes(R.T, h_world[:3]), ca.mtimes(R.T, h_world[3:]))
-    twist = base_twist_sym(mm, qd, h_base)
-    return ca.vertcat(ca.mtimes(R, twist[:3]), 0.5 * quat_times_pure_sym(x_base[3:7], twist[3:]))
+    return pose_rate_sym(x_base, base_twist_sym(mm, qd, h_base), R)
 
 
 @dataclass
@@ -292,8 +297,7 @@ def pose_rk4_step() -> ca.Function:
     t0, tm, t1 = (ca.SX.sym(nm, 6) for nm in ("twist0", "twist_mid", "twist1"))
 
     def rate(xk: ca.SX, twist: ca.SX) -> ca.SX:
-        return ca.vertcat(ca.mtimes(quat_to_rotation_sym(xk[3:7]), twist[:3]),
-                          0.5 * quat_times_pure_sym(xk[3:7], twist[3:]))
+        return pose_rate_sym(xk, twist, quat_to_rotation_sym(xk[3:7]))
 
     k1 = rate(x, t0)
     k2 = rate(x + 0.5 * dt * k1, tm)

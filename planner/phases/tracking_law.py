@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.model.freefloating import FreeFloatingModel, quat_times_pure_sym, quat_to_rotation_sym
+from planner.model.freefloating import FreeFloatingModel, pose_rate_sym, quat_to_rotation_sym
 from planner.nlp.compiled import compiled
 from planner.nlp.costs import manipulability_sym
 from planner.phases.tracking_kinematics import Buffered
@@ -72,8 +72,7 @@ def tracking_law_function(ff: FreeFloatingModel) -> ca.Function:
     demand = ca.fabs(qd) / qd_max
     r = ca.sum1((demand / cap) ** power) ** (1.0 / power)
     qd = qd / (1.0 + r**power) ** (1.0 / power)
-    nu = ff.base_twist(q, qd, ca.DM.zeros(6))
-    x_rate = ca.vertcat(ca.mtimes(R_wb, nu[:3]), 0.5 * quat_times_pure_sym(x[3:7], nu[3:]))
+    x_rate = pose_rate_sym(x, ff.base_twist(q, qd, ca.DM.zeros(6)), R_wb)
     diagonal = ca.fabs(ca.diag(R))
     return ca.Function("tracking_law", [q, x, desired, posture, gains],
                        [ca.vertcat(qd, x_rate, ca.mmax(demand), ca.mmin(diagonal) / ca.mmax(diagonal))])

@@ -99,8 +99,8 @@ def _state(robot, rng):
 
 
 def test_law_is_eq7_with_pinocchio_kinematics_and_the_svd_pseudo_inverse(robot, law):
-    """Each term on its own (feed-forward twist; pose error; posture reference in the null space), rates small and
-    large (the cap), against Eq. 7 written out with pinocchio's Jacobian and log3 and numpy's pinv."""
+    """Each term on its own (feed-forward twist; pose error; posture reference in the null space; the gains' ramp),
+    rates small and large (the cap), against Eq. 7 written out with pinocchio's Jacobian and log3 and numpy's pinv."""
     rng = np.random.default_rng(43)
     n = robot.n_joints
     qd_max = robot.qd_max
@@ -114,11 +114,13 @@ def test_law_is_eq7_with_pinocchio_kinematics_and_the_svd_pseudo_inverse(robot, 
         q_ref, qd_ref = q + rng.normal(scale=0.1, size=n), rng.normal(scale=0.05, size=n)
         desired = np.concatenate([R_des.ravel(order="F"), p_des, twist])
         error = np.concatenate([p_des - oMee.translation, pin.log3(R_des @ oMee.rotation.T)])
-        for K, scale in ((0.0, 1.0), (2.0, 1.0), (2.0, 40.0)):  # feed-forward alone; with the error; capped
-            posture = np.concatenate([[1.0], q_ref, qd_ref, [1.0]])
+        # feed-forward alone; with the error; in the gains' ramp (σ scales the feedback and the null space, not the
+        # feed-forward); capped
+        for K, ramp, scale in ((0.0, 1.0, 1.0), (2.0, 1.0, 1.0), (2.0, 0.3, 1.0), (2.0, 1.0, 40.0)):
+            posture = np.concatenate([[ramp], q_ref, qd_ref, [1.0]])
             at = law(q, x, desired, posture, _gains(robot, K, 0.0, qd_max / scale))
-            null = qd_ref + K * (q_ref - q)
-            expected = _capped(J_pinv @ (twist + K * error) + (np.eye(n) - J_pinv @ J) @ null, qd_max / scale)
+            null = ramp * (qd_ref + K * (q_ref - q))
+            expected = _capped(J_pinv @ (twist + K * ramp * error) + (np.eye(n) - J_pinv @ J) @ null, qd_max / scale)
             np.testing.assert_allclose(at.qd, expected, rtol=1e-9, atol=1e-12)
             nu = W @ at.qd
             w, v = x[3], x[4:]
