@@ -28,7 +28,8 @@ table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II
 ``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
 ``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget
 (``--optimal-budget-s``), one process at a time: about a minute per state on one core (scenario I). Alone:
-``scripts/bench.py --only optimal --optimal-states 10``.
+``scripts/bench.py --only optimal --optimal-states 10``. Another table of the same grid box, without planning the
+optima again: ``--optimal-optima EARLIER.json`` (an earlier ``--out`` of the same seed and scenario).
 
 ``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many
 no meeting time brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a
@@ -144,6 +145,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--optimal-budget-s", type=positive_float, default=None, metavar="S",
                     help="optimal: each offline optimum's budget (default 600 s; a scenario II costed plan descends "
                          "to its budget, so its table's --point-timeout is the like-for-like choice)")
+    ap.add_argument("--optimal-optima", type=Path, default=None, metavar="JSON",
+                    help="optimal: take each state's offline optimum from an earlier run's --out JSON of the same "
+                         "scenario, seed and grid box instead of planning it again (another table of that box "
+                         "measured in minutes)")
     ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
                     help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
                          "--out file are kept, so one part can be re-measured after a change")
@@ -203,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     settings = replace(settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s,
                                     args.plan_with_costs, args.refine_budget_s, cov),
                        optimal=optimal_settings(args.quick, args.trim, args.optimal_table, args.optimal_states,
-                                                        args.optimal_budget_s))
+                                                        args.optimal_budget_s, args.optimal_optima))
     only = None
     if args.only is not None:
         only = tuple(name.strip() for name in args.only.split(",") if name.strip())

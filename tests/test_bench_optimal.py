@@ -96,3 +96,38 @@ def test_the_offline_optimums_budget_is_an_option_that_refuses_nonsense():
     for bad in ("0", "-5", "inf", "nan"):
         with pytest.raises(SystemExit):
             bench.parse_args(["--optimal-budget-s", bad])
+
+
+def _earlier_run(tmp_path: Path, states: list, seed: int = 7, scenario: str = "scenario_II_energy",
+                 name: str = "earlier") -> Path:
+    """An earlier run's JSON of the optimal section with made-up optima at ``states``."""
+    import json
+
+    runs = [{"state": i, "attitude_wxyz": list(map(float, s.attitude_wxyz)),
+             "omega_body_deg_s": list(map(float, np.degrees(s.omega_body_rad_s))),
+             "optimum": _optimum(1.0 + i) | {"command": "lutgen plan …"}} for i, s in enumerate(states)]
+    path = tmp_path / f"{name}.json"
+    path.write_text(json.dumps({"optimal": {"scenario": scenario, "seed": [seed, section.SEED_SALT],
+                                            "optimum_budget_s": 145.0, "runs": runs}}))
+    return path
+
+
+def test_stored_optima_are_taken_only_for_the_same_scenario_seed_and_states(tmp_path):
+    config = load_grid(ROOT / "configs" / "grids" / "flat_spin_II_energy_fine.toml")
+    scenario = load_scenario(config.scenario_path)
+    grid = Grid(config, scenario.target.inertia_body_kg_m2, scenario.target_state.as_state())
+    states = section.off_grid_states(grid, 4, 7)
+    head = {"scenario": "scenario_II_energy", "seed": [7, section.SEED_SALT]}
+    stored = section.stored_optima(_earlier_run(tmp_path, states), head, states[:3])  # a shorter run: its first 3
+    assert [o["cost"]["total"] for o in stored.optima] == [1.0, 2.0, 3.0] and stored.budget_s == 145.0
+    refusals = {"its scenario is": _earlier_run(tmp_path, states, scenario="scenario_I_energy", name="I"),
+                "its seed is": _earlier_run(tmp_path, states, seed=8, name="seed8"),
+                "holds 2 states": _earlier_run(tmp_path, states[:2], name="short"),
+                "state 1 is not this run's": _earlier_run(tmp_path, [states[0], states[2], states[1], states[3]],
+                                                          name="shuffled")}
+    for words, path in refusals.items():
+        with pytest.raises(SystemExit, match=words):
+            section.stored_optima(path, head, states)
+    (tmp_path / "earlier.json").write_text("{}")
+    with pytest.raises(SystemExit, match="not a bench JSON"):
+        section.stored_optima(tmp_path / "earlier.json", head, states)

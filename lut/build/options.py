@@ -29,6 +29,7 @@ class BuildOptions:
     progress: bool = True
     robust_sigmas: tuple[float, float] | None = None  # --robust: 1-σ attitude [deg] and body rate [deg/s]
     robust_samples: int = 20  # drawn states per feasible point with --robust
+    reuse: str | None = None  # --reuse: a table whose feasible plans at this grid's points are taken as they are
 
     def solver_kwargs(self) -> dict[str, float]:
         """The point solver's robustness arguments (none without ``--robust``)."""
@@ -54,6 +55,7 @@ class BuildSummary:
     wall_time_s: float  # [s]
     failures: list[str] = field(default_factory=list)  # "point N: reason"
     outcome: BuildOutcome = BuildOutcome.BUILT
+    reused_now: int = 0  # points taken from --reuse's table in this run
 
 
 def check_options(options: BuildOptions) -> None:

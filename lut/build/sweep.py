@@ -11,8 +11,10 @@
   once it holds every point, the journal is removed.
 * **Parallelism.** joblib: ``loky`` locally, or ``dask`` with a ``distributed`` scheduler address for
   a cluster (the workers need lutgen installed and the config files at the same paths).
-* **Determinism.** Same config ⇒ same warm-start tree ⇒ same table (up to points that hit the time
-  limit, which depends on the machine).
+* **Reuse.** ``--reuse TABLE``: the points the grid shares with a table already built take its feasible plans
+  as they are, and the warm-start tree grows from them (:mod:`lut.build.reuse`).
+* **Determinism.** Same config (and reused table) ⇒ same warm-start tree ⇒ same table (up to points that hit
+  the time limit, which depends on the machine).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -27,6 +30,7 @@ from lut.build.backends import parallel_backend
 from lut.build.existing_work import complete_summary, existing_work, journal_path
 from lut.build.options import BuildOptions, BuildSummary, check_options
 from lut.build.progress import Progress
+from lut.build.reuse import Continuation, reuse_continuation, reused_points, weighted_cost
 from lut.output.paths import Output, check_outputs
 from lut.solve.point_process import run_point
 from lut.solve.point_server import stop_all
@@ -42,7 +46,6 @@ from planner.config.scenario import Scenario, load_scenario
 if TYPE_CHECKING:
     from joblib import Parallel
 
-Continuation = list[tuple[int, int | None]]  # (point, its warm-start parent or None), in solving order
 OnResult = Callable[[PointResult], None]
 
 
@@ -78,13 +81,16 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     check_options(options)
     config, scenario, grid = prepare(grid_path)
     jpath = journal_path(table_path)
-    inputs = [grid_path, config.scenario_path, *scenario.input_files]
+    inputs = [grid_path, config.scenario_path, *scenario.input_files, *([options.reuse] if options.reuse else [])]
     check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
     mhash = table_hash(scenario)
+    reused = reused_points(options.reuse, grid, config.kind, mhash) if options.reuse else {}
     complete = existing_work(table_path, jpath, options, mhash, config)
     if complete is not None:
         return complete_summary(complete, t_start)
-    done, solved_now = _journaled_sweep(grid, config, options, jpath, mhash, on_result)
+    order = reuse_continuation(grid, reused, weighted_cost(scenario)) if reused else grid.continuation_order()
+    done, solved_now, reused_now = _journaled_sweep(grid, config, options, jpath, mhash,
+                                                   Sweep(order, reused, on_result))
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
                 grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
                 records={p: to_record(r) for p, r in done.items()}, n_points=grid.n_points,
@@ -95,12 +101,24 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
         # the table now holds every point durably; a leftover journal would only block the next build
         jpath.unlink(missing_ok=True)
     failures = [f"point {p}: {r.failure_reason}" for p, r in sorted(done.items()) if r.status is PointStatus.FAILED]
-    return BuildSummary(table_path, grid.n_points, counts, solved_now, time.perf_counter() - t_start, failures)
+    return BuildSummary(table_path, grid.n_points, counts, solved_now, time.perf_counter() - t_start, failures,
+                        reused_now=reused_now)
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """What a build solves: every point in ``order`` (with its warm-start parent), less the ``reused`` results
+    taken as they are; ``on_result`` sees every point solved."""
+
+    order: Continuation
+    reused: dict[int, PointResult]
+    on_result: OnResult | None = None
 
 
 def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpath: Path, mhash: str,
-                     on_result: OnResult | None) -> tuple[dict[int, PointResult], int]:
-    """Open (or continue) the journal and solve what it lacks; a sweep that solved nothing leaves no journal."""
+                     sweep: Sweep) -> tuple[dict[int, PointResult], int, int]:
+    """Open (or continue) the journal and solve what it lacks; a sweep that solved nothing leaves no journal.
+    The results of all points, how many were solved now and how many reused now."""
     parallel, client = parallel_backend(options)
     try:
         journal = Journal(jpath, {"model_hash": mhash, "grid_text": config.text})
@@ -109,7 +127,9 @@ def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpat
             client.close()
         raise
     try:
-        return _solve_layers(grid, config, options, journal, parallel, on_result)
+        done = {p: from_record(rec) for p, rec in journal.records().items()}
+        reused_now = _journal_reused(journal, sweep.reused, done)
+        return (*_solve_layers(grid, config, options, journal, parallel, sweep, done), reused_now)
     except BaseException:
         if journal.started and not journal.records():
             journal.discard()  # nothing was solved: leave no journal that would ask for --resume
@@ -121,22 +141,29 @@ def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpat
             client.close()
 
 
+def _journal_reused(journal: Journal, reused: dict[int, PointResult], done: dict[int, PointResult]) -> int:
+    """Append the reused results the journal lacks (a resumed build finds them there); how many were appended."""
+    new = [p for p in sorted(reused) if p not in done]
+    for p in new:
+        journal.append(to_record(reused[p]))
+        done[p] = reused[p]
+    return len(new)
+
+
 def _solve_layers(grid: Grid, config: GridConfig, options: BuildOptions, journal: Journal, parallel: Parallel,
-                  on_result: OnResult | None) -> tuple[dict[int, PointResult], int]:
-    """Solve every point the journal does not hold yet, layer by layer; the results of all points, and how
-    many were solved now."""
-    done = {p: from_record(rec) for p, rec in journal.records().items()}
-    order = grid.continuation_order()
-    bar = Progress(len(order), sum(1 for p, _ in order if p in done), options.progress)
+                  sweep: Sweep, done: dict[int, PointResult]) -> tuple[dict[int, PointResult], int]:
+    """Solve every point ``done`` does not hold yet, layer by layer; the results of all points, and how many
+    were solved now."""
+    bar = Progress(len(sweep.order), sum(1 for p, _ in sweep.order if p in done), options.progress)
     solved_now = 0
     try:
-        for layer in continuation_layers(order):
+        for layer in continuation_layers(sweep.order):
             for result in _solve_layer(grid, config, options, layer, done, parallel):
                 journal.append(to_record(result))
                 done[result.point] = result
                 solved_now += 1
-                if on_result is not None:
-                    on_result(result)
+                if sweep.on_result is not None:
+                    sweep.on_result(result)
                 bar.update(result)
     finally:
         bar.close()

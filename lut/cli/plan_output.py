@@ -10,7 +10,7 @@ from lut.cli.exit_codes import ExitCode
 from lut.cli.process_end import end_command, exit_now
 
 if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load the planner
-    from lut.query.plan_costs import CostBreakdown, CostScorer
+    from lut.table.plan_costs import CostBreakdown, CostScorer
     from planner.plan import GraspPlan
     from planner.verify.verifier import VerifyReport
 

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from planner.plan_parameters import PlanParameters
 
 if TYPE_CHECKING:
-    from lut.query.plan_costs import CostBreakdown
+    from lut.table.plan_costs import CostBreakdown
     from planner.plan import GraspPlan
     from planner.verify.verifier import VerifyReport
 

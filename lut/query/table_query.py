@@ -19,7 +19,7 @@
    within what is left of the time budget (killed at it); a feasible refined plan replaces the
    interpolated one. If there is still no feasible plan, a cold solve gets what is left after that.
 6. The answer carries the scenario's weighted cost terms of its plan and of each corner used
-   (:mod:`lut.query.plan_costs`), so an optimal table's query shows how far it is from its corners' optima.
+   (:mod:`lut.table.plan_costs`), so an optimal table's query shows how far it is from its corners' optima.
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ from numpy.typing import NDArray
 
 from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
 from lut.query.least_violating import violates_less, violation
-from lut.query.plan_costs import CostBreakdown, CostScorer
 from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.stabilization_repair import repaired_plan, single_cause, stabilization_only
 from lut.query.table_checks import check_parameters, parameter_shapes
@@ -42,6 +41,7 @@ from lut.table.grid import Grid
 from lut.table.grid_config import load_grid_text
 from lut.table.grid_projection import project_to_grid
 from lut.table.model_identity import table_hash
+from lut.table.plan_costs import CostBreakdown, CostScorer
 from lut.table.point_result import PointResult, PointStatus
 from lut.table.records import from_record
 from lut.table.schema import TableError

@@ -52,6 +52,7 @@ class OptimalSettings:
     states: int
     query_budget_s: float
     optimum_budget_s: float
+    optima: Path | None = None  # an earlier run's JSON whose offline optima are taken instead of planned again
 
 
 @dataclass(frozen=True)
@@ -90,13 +91,14 @@ OPTIMUM_BUDGET_S = 600.0  # the offline optimum's default budget: scenario I's o
 
 
 def optimal_settings(quick: bool, trim: bool, table: Path | None, states: int | None,
-                     optimum_budget_s: float | None = None) -> OptimalSettings:
+                     optimum_budget_s: float | None = None, optima: Path | None = None) -> OptimalSettings:
     """Full: 30 states (the issue's bar); quick: 2; trim: 1 on the golden table (feasibility-only: the section
     proves its code path and says there is no optimum to compare). ``optimum_budget_s`` [s] (default
-    :data:`OPTIMUM_BUDGET_S`) bounds each offline optimum."""
+    :data:`OPTIMUM_BUDGET_S`) bounds each offline optimum; ``optima``: an earlier run's JSON to take them from."""
     default_table, default_states = (GOLDEN_TABLE, 1) if trim else (OPTIMAL_TABLE, 2 if quick else 30)
     return OptimalSettings(default_table if table is None else table, default_states if states is None else states,
-                           COVERAGE_BUDGET_S, OPTIMUM_BUDGET_S if optimum_budget_s is None else optimum_budget_s)
+                           COVERAGE_BUDGET_S, OPTIMUM_BUDGET_S if optimum_budget_s is None else optimum_budget_s,
+                           optima)
 
 
 def coverage_settings(quick: bool, trim: bool, states: int | None, jobs: int, tables: Path | None,

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -73,6 +74,37 @@ def optimum_record(tq: TableQuery, state: TargetState, budget_s: float) -> dict[
             "feasible": run.exit_code == 0, "cost": cost, "last_line": last_line(run.stderr)}
 
 
+@dataclass(frozen=True)
+class StoredOptima:
+    """The offline optima of an earlier run of this section (``--optimal-optima``), one per state, in order."""
+
+    optima: list[dict[str, Any]]
+    budget_s: float  # [s] the budget they were planned with
+
+
+def stored_optima(path: Path, head: dict[str, Any], states: list[TargetState]) -> StoredOptima:
+    """Each state's offline optimum from an earlier bench JSON of the same scenario, seed and states (the same
+    grid box): a new table of that box measured without planning the optima again. ``SystemExit`` saying what
+    differs otherwise."""
+    where = f"bench: --optimal-optima {relative(path)}"
+    try:
+        earlier = json.loads(path.read_text(encoding="utf-8"))["optimal"]
+        runs = list(earlier["runs"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SystemExit(f"{where}: not a bench JSON with the optimal section's runs ({exc})") from None
+    for key in ("scenario", "seed"):
+        if earlier.get(key) != head[key]:
+            raise SystemExit(f"{where}: its {key} is {earlier.get(key)}, this run's {head[key]}")
+    if len(runs) < len(states):
+        raise SystemExit(f"{where}: it holds {len(runs)} states, this run draws {len(states)}")
+    for i, (run, state) in enumerate(zip(runs, states, strict=False)):
+        same = np.allclose(run["attitude_wxyz"], state.attitude_wxyz, rtol=0.0, atol=1e-12) and np.allclose(
+            run["omega_body_deg_s"], np.degrees(state.omega_body_rad_s), rtol=0.0, atol=1e-12)
+        if not same:
+            raise SystemExit(f"{where}: its state {i} is not this run's (another grid box)")
+    return StoredOptima([run["optimum"] for run in runs[:len(states)]], float(earlier["optimum_budget_s"]))
+
+
 def cost_gap(query: dict[str, Any], optimum: dict[str, Any]) -> dict[str, Any] | None:
     """The query's total cost less the optimum's (> 0: the query is worse), relative to |optimum| where it is not
     0, and whether it is within max(5 % |optimum|, :data:`ABSOLUTE_TOLERANCE`); None unless both are feasible."""
@@ -137,14 +169,18 @@ def optimal(settings: Settings) -> dict[str, Any]:
             "table_load_s": tq.load_time_s, "grid_axes": tq.grid.axis_names,
             "notes": "queries in this process (table loaded once; latency = the query alone), each offline optimum "
                      "one cold `lutgen plan` process on one core; costs are the query's own weighted terms "
-                     "(lut.query.plan_costs) of both plans; gap = query − optimum"}
+                     "(lut.table.plan_costs) of both plans; gap = query − optimum"}
     if tq.scorer.feasibility_only:
         return head | skipped(f"{tq.scenario.name} weights no cost term (a feasibility-only table): no optimum "
                               "to compare", SUMMARY_KEYS)
+    states = off_grid_states(tq.grid, o.states, settings.seed)
+    stored = None if o.optima is None else stored_optima(o.optima, head, states)
+    if stored is not None:
+        head |= {"optima_from": relative(o.optima), "optimum_budget_s": stored.budget_s}
     runs = []
-    for i, state in enumerate(off_grid_states(tq.grid, o.states, settings.seed)):
+    for i, state in enumerate(states):
         query = query_record(tq, state, o.query_budget_s)
-        optimum = optimum_record(tq, state, o.optimum_budget_s)
+        optimum = optimum_record(tq, state, o.optimum_budget_s) if stored is None else stored.optima[i]
         runs.append({"state": i, "attitude_wxyz": list(state.attitude_wxyz),
                      "omega_body_deg_s": list(np.degrees(state.omega_body_rad_s)), "query": query,
                      "optimum": optimum, "gap": cost_gap(query, optimum)})

@@ -16,9 +16,9 @@ from lut.build.existing_work import journal_path
 from lut.build.options import BuildOptions
 from lut.build.sweep import run_build
 from lut.table.store import Table
+from tests.support.fake_build import FAKE_SOLVER, assert_same, fake_solver_env, fresh_workers, snapshot
 
 ROOT = Path(__file__).resolve().parents[3]
-FAKE = "tests.support.fake_solver:solve"
 
 GRID = """
 name = "test"
@@ -47,68 +47,30 @@ def grid_file(tmp_path: Path) -> Path:
 
 
 @pytest.fixture(autouse=True)
-def _pythonpath(monkeypatch):
-    # the point processes import tests.support.fake_solver from the repo root
-    monkeypatch.setenv("PYTHONPATH", str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    for var in ("LUTGEN_FAKE_RAISE", "LUTGEN_FAKE_HANG", "LUTGEN_FAKE_CRASH", "LUTGEN_FAKE_SLEEP_S"):
-        monkeypatch.delenv(var, raising=False)
-    _fresh_workers()
-
-
-def _fresh_workers() -> None:
-    """loky keeps its worker processes between builds, with the environment they started with; the
-    fault-injection variables must reach the point processes, so every test starts new workers."""
-    from joblib.externals.loky import get_reusable_executor
-
-    get_reusable_executor().shutdown(wait=True, kill_workers=True)
-
-
-# Per-point fields that hold wall-clock measurements: they differ between two runs of the same build by
-# design, so only whether each point has a value (and that it is a duration, >= 0) must agree.
-WALL_CLOCK_FIELDS = frozenset({"solve_time_s"})
-
-
-def _snapshot(path: Path) -> dict[str, np.ndarray]:
-    """Every per-point field of the table (status, parameters, costs, margins, reasons…), whatever the records hold."""
-    t = Table.open(path)
-    return {key: t.field(key) for key in t.field_names}
-
-
-def _assert_same(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
-    """Same fields, and every field equal bit for bit (the build is deterministic: fixed warm-start tree, one
-    solve per process), NaN (no value) where the other has NaN; wall-clock fields only agree on which points
-    have a value."""
-    assert sorted(a) == sorted(b), f"fields differ: {sorted(set(a) ^ set(b))}"
-    assert {"status", "approach_params", "start_delay_s", "stabilization_params"} <= set(a)
-    for key in sorted(a):
-        if key in WALL_CLOCK_FIELDS:
-            np.testing.assert_array_equal(np.isnan(a[key]), np.isnan(b[key]), err_msg=key)
-            assert np.all(a[key][~np.isnan(a[key])] >= 0) and np.all(b[key][~np.isnan(b[key])] >= 0), key
-            continue
-        assert a[key].dtype == b[key].dtype and a[key].shape == b[key].shape, key
-        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+def _fake_solver(monkeypatch):
+    fake_solver_env(monkeypatch)
 
 
 def test_parallel_build_writes_every_point(grid_file, tmp_path):
     out = tmp_path / "t.h5"
-    summary = run_build(grid_file, out, BuildOptions(jobs=2, solver=FAKE, progress=False))
+    summary = run_build(grid_file, out, BuildOptions(jobs=2, solver=FAKE_SOLVER, progress=False))
     assert summary.counts["feasible"] == 9 and summary.counts["pending"] == 0
     t = Table.open(out)
     assert t.counts()["feasible"] == 9
     assert not journal_path(out).exists()  # a complete table makes the journal redundant: removed
     # same config ⇒ same table
     out2 = tmp_path / "t2.h5"
-    run_build(grid_file, out2, BuildOptions(jobs=1, solver=FAKE, progress=False))
-    _assert_same(_snapshot(out), _snapshot(out2))
+    run_build(grid_file, out2, BuildOptions(jobs=1, solver=FAKE_SOLVER, progress=False))
+    assert_same(snapshot(out), snapshot(out2))
 
 
 def test_raising_and_hanging_points_are_recorded_failed(grid_file, tmp_path, monkeypatch):
     monkeypatch.setenv("LUTGEN_FAKE_RAISE", "2")
     monkeypatch.setenv("LUTGEN_FAKE_HANG", "5")
     monkeypatch.setenv("LUTGEN_FAKE_CRASH", "7")
-    _fresh_workers()
+    fresh_workers()
     out = tmp_path / "t.h5"
-    summary = run_build(grid_file, out, BuildOptions(jobs=2, solver=FAKE, point_timeout_s=8.0, progress=False))
+    summary = run_build(grid_file, out, BuildOptions(jobs=2, solver=FAKE_SOLVER, point_timeout_s=8.0, progress=False))
     t = Table.open(out)
     reasons = {p: t.record(p)["failure_reason"] for p in range(t.n_points)}
     assert t.counts()["failed"] == 3 and t.counts()["feasible"] == 6, reasons
@@ -140,7 +102,7 @@ def _journaled_points(path: Path) -> int:
 
 def test_kill_9_at_random_moments_then_resume_equals_uninterrupted(grid_file, tmp_path):
     reference = tmp_path / "ref.h5"
-    run_build(grid_file, reference, BuildOptions(jobs=2, solver=FAKE, progress=False))
+    run_build(grid_file, reference, BuildOptions(jobs=2, solver=FAKE_SOLVER, progress=False))
     out = tmp_path / "killed.h5"
     # 1 s per point: 9 points on 2 processes take ≥ 5 s, so three kills land before the end
     # a SIGKILLed build cannot remove its points' scratch directories; keep them in this test's tmp_path
@@ -148,7 +110,7 @@ def test_kill_9_at_random_moments_then_resume_equals_uninterrupted(grid_file, tm
     scratch.mkdir()
     env = dict(os.environ, LUTGEN_FAKE_SLEEP_S="1.0", TMPDIR=str(scratch))
     rng = np.random.default_rng(7)
-    script = BUILD_SCRIPT.format(fake=FAKE)
+    script = BUILD_SCRIPT.format(fake=FAKE_SOLVER)
     kills = 0
     for _ in range(3):
         # Kill at a random moment after this run has journaled something new, so that every kill
@@ -168,8 +130,8 @@ def test_kill_9_at_random_moments_then_resume_equals_uninterrupted(grid_file, tm
     assert kills == 3
     assert journal_path(out).exists()
     assert 3 <= _journaled_points(journal_path(out)) < 9
-    run_build(grid_file, out, BuildOptions(jobs=2, solver=FAKE, resume=True, progress=False))
-    _assert_same(_snapshot(reference), _snapshot(out))
+    run_build(grid_file, out, BuildOptions(jobs=2, solver=FAKE_SOLVER, resume=True, progress=False))
+    assert_same(snapshot(reference), snapshot(out))
 
 
 def test_an_existing_journal_needs_resume(grid_file, tmp_path):
@@ -178,13 +140,13 @@ def test_an_existing_journal_needs_resume(grid_file, tmp_path):
     out = tmp_path / "t.h5"
     journal_path(out).write_bytes(b"")
     with pytest.raises(LutgenError, match="--resume"):
-        run_build(grid_file, out, BuildOptions(jobs=1, solver=FAKE, progress=False))
+        run_build(grid_file, out, BuildOptions(jobs=1, solver=FAKE_SOLVER, progress=False))
 
 
 def test_dask_local_cluster_gives_the_same_table_as_loky(grid_file, tmp_path):
     distributed = pytest.importorskip("distributed", reason="the 'dask' extra is not installed")
     loky = tmp_path / "loky.h5"
-    run_build(grid_file, loky, BuildOptions(jobs=2, solver=FAKE, progress=False))
+    run_build(grid_file, loky, BuildOptions(jobs=2, solver=FAKE_SOLVER, progress=False))
     import dask
 
     # the scheduler and workers keep their scratch space in this test's tmp_path, not the machine's /tmp
@@ -193,5 +155,5 @@ def test_dask_local_cluster_gives_the_same_table_as_loky(grid_file, tmp_path):
                                      dashboard_address=None) as cluster:
         dask_out = tmp_path / "dask.h5"
         run_build(grid_file, dask_out, BuildOptions(backend="dask", scheduler=cluster.scheduler_address,
-                                                     solver=FAKE, progress=False))
-    _assert_same(_snapshot(loky), _snapshot(dask_out))
+                                                     solver=FAKE_SOLVER, progress=False))
+    assert_same(snapshot(loky), snapshot(dask_out))

@@ -14,9 +14,9 @@ import pytest
 from lut.cli.plan_output import cost_table
 from lut.output.plan_file import load_plan
 from lut.output.plan_replay import replay_inputs
-from lut.query.plan_costs import CostScorer
 from lut.query.table_query import TableQuery
 from lut.table.model_identity import table_hash
+from lut.table.plan_costs import CostScorer
 from lut.table.store import Table
 from planner.config.scenario import load_scenario
 from planner.model.freefloating import FreeFloatingModel

@@ -1,0 +1,116 @@
+"""``lutgen build --reuse``: another table's feasible plans at the points a grid shares with it, and the warm-start
+tree that grows the rest of the grid from them (the cheapest of a point's nearest reused neighbours first).
+
+A warm-started build keeps each point in its parent's local minimum, so a grid refined in the build (an axis
+value added between two solved ones) inherits whatever minimum its own continuation tree happens to reach from its
+seed. With ``--reuse`` the points the grid shares with a table already built (same robot, target, scenario and
+grid kind; coordinates equal within :data:`lut.table.grid.COORD_TOL`) take that table's feasible plans as they
+are, and every other point starts from an adjacent reused point, the one with the lowest weighted approach cost
+(paper Eq. 14–16) where several are adjacent; points further away grow from those, breadth first.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from lut.table.grid import COORD_TOL, Grid
+from lut.table.point_result import PointResult, PointStatus
+from lut.table.records import from_record
+from lut.table.schema import TableError
+from lut.table.store import Table
+from planner.config.scenario import Scenario
+from planner.errors import LutgenError
+
+Continuation = list[tuple[int, int | None]]  # (point, its warm-start parent or None), in solving order
+CostOf = Callable[[PointResult], float]
+
+
+def reused_points(table_path: str | Path, grid: Grid, grid_kind: str, model_hash: str) -> dict[int, PointResult]:
+    """The feasible results of ``table_path`` at this grid's points, re-indexed to this grid (point → result).
+
+    :class:`LutgenError` naming ``--reuse`` when the table answers for another model or grid kind, has other
+    axes, or shares no feasible point with the grid.
+    """
+    try:
+        table = Table.open(table_path)
+    except TableError as exc:
+        raise LutgenError(f"--reuse: {exc}") from None
+    if table.model_hash != model_hash:
+        raise LutgenError(f"--reuse {table_path}: built for another robot, target or scenario (model hash "
+                          f"{table.model_hash[:12]}… against {model_hash[:12]}…); its plans are not this grid's")
+    kind = table.attrs.get("grid_kind")
+    if kind != grid_kind or table.axis_names != grid.axis_names:
+        raise LutgenError(f"--reuse {table_path}: a {kind} table over ({', '.join(table.axis_names)}); this grid "
+                          f"is {grid_kind} over ({', '.join(grid.axis_names)})")
+    shape = tuple(len(v) for v in table.axis_values)
+    found: dict[int, PointResult] = {}
+    for p in np.flatnonzero(table.status == PointStatus.FEASIBLE.code):
+        coords = [float(v[i]) for v, i in zip(table.axis_values, np.unravel_index(p, shape), strict=True)]
+        point = _grid_point_at(grid, coords)
+        if point is not None:
+            found[point] = replace(from_record(table.record(int(p))), point=point)
+    if not found:
+        raise LutgenError(f"--reuse {table_path}: none of its feasible points lies on this grid (axes "
+                          f"{', '.join(grid.axis_names)})")
+    return found
+
+
+def _grid_point_at(grid: Grid, coords: list[float]) -> int | None:
+    """The grid point at ``coords`` (each axis within :data:`COORD_TOL`, periodic axes modulo 360°), or ``None``."""
+    index = []
+    for ax, values, x in zip(grid.axes, grid.axis_values, coords, strict=True):
+        d = values - x
+        if ax.periodic:
+            d = (d + 180.0) % 360.0 - 180.0
+        hits = np.flatnonzero(np.abs(d) <= COORD_TOL)
+        if hits.size == 0:
+            return None
+        index.append(int(hits[0]))
+    return grid.flat_of(index)
+
+
+def reuse_continuation(grid: Grid, reused: dict[int, PointResult], cost_of: CostOf) -> Continuation:
+    """Every point once as ``(point, parent)``: the reused points first (no parent), then breadth first from all of
+    them at once; a point's parent is its adjacent point of the layer before with the lowest ``cost_of`` (a point
+    solved in this build has no cost yet: the lowest index among those)."""
+    order: Continuation = [(p, None) for p in sorted(reused)]
+    seen = set(reused)
+    layer = sorted(reused)
+    while layer:
+        in_layer = set(layer)
+        nxt = sorted({nb for p in layer for nb in grid.neighbours(p) if nb not in seen})
+        for point in nxt:
+            parents = [p for p in grid.neighbours(point) if p in in_layer]
+            order.append((point, min(parents, key=lambda p: (_cost(reused.get(p), cost_of), p))))
+        seen.update(nxt)
+        layer = nxt
+    return order
+
+
+def _cost(result: PointResult | None, cost_of: CostOf) -> float:
+    """The result's cost, +inf where there is none to compare (not reused, or NaN)."""
+    if result is None:
+        return math.inf
+    value = cost_of(result)
+    return value if math.isfinite(value) else math.inf
+
+
+def weighted_cost(scenario: Scenario) -> CostOf:
+    """The scenario's weighted approach cost (Eq. 14–16) of a feasible result's stored plan (0 for a
+    feasibility-only scenario)."""
+    from lut.table.plan_costs import CostScorer
+    from planner.model.freefloating import FreeFloatingModel
+    from planner.phases.approach import approach_spline
+
+    scorer = CostScorer(scenario, FreeFloatingModel(scenario.robot), approach_spline(scenario))
+
+    def cost_of(result: PointResult) -> float:
+        assert result.parameters is not None  # reused results are feasible plans
+        return scorer.score("", result.parameters.approach, result.costs.get("min_distance_m", math.nan)).total
+
+    return cost_of
