@@ -1,18 +1,19 @@
-"""``lutgen build --reuse``: another table's feasible plans at the points a grid shares with it, and the warm-start
+"""``lutgen build --reuse``: other tables' feasible plans at the points a grid shares with them, and the warm-start
 tree that grows the rest of the grid from them (the cheapest of a point's nearest reused neighbours first).
 
 A warm-started build keeps each point in its parent's local minimum, so a grid refined in the build (an axis
 value added between two solved ones) inherits whatever minimum its own continuation tree happens to reach from its
 seed. With ``--reuse`` the points the grid shares with a table already built (same robot, target, scenario and
 grid kind; coordinates equal within :data:`lut.table.grid.COORD_TOL`) take that table's feasible plans as they
-are, and every other point starts from an adjacent reused point, the one with the lowest weighted approach cost
-(paper Eq. 14–16) where several are adjacent; points further away grow from those, breadth first.
+are (the cheapest where several tables hold a point: a point solved from more than one start), and every other
+point starts from an adjacent reused point, the one with the lowest weighted approach cost (paper Eq. 14–16) where
+several are adjacent; points further away grow from those, breadth first.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -28,6 +29,18 @@ from planner.errors import LutgenError
 
 Continuation = list[tuple[int, int | None]]  # (point, its warm-start parent or None), in solving order
 CostOf = Callable[[PointResult], float]
+
+
+def cheapest_reused(table_paths: Sequence[str | Path], grid: Grid, grid_kind: str, model_hash: str,
+                    cost_of: CostOf) -> dict[int, PointResult]:
+    """:func:`reused_points` of every table; where several hold a point, the plan with the lowest ``cost_of`` (a
+    NaN cost loses; a tie keeps the table given first)."""
+    chosen: dict[int, PointResult] = {}
+    for path in table_paths:
+        for point, result in reused_points(path, grid, grid_kind, model_hash).items():
+            if point not in chosen or _cost(result, cost_of) < _cost(chosen[point], cost_of):
+                chosen[point] = result
+    return chosen
 
 
 def reused_points(table_path: str | Path, grid: Grid, grid_kind: str, model_hash: str) -> dict[int, PointResult]:

@@ -11,8 +11,9 @@
   once it holds every point, the journal is removed.
 * **Parallelism.** joblib: ``loky`` locally, or ``dask`` with a ``distributed`` scheduler address for
   a cluster (the workers need lutgen installed and the config files at the same paths).
-* **Reuse.** ``--reuse TABLE``: the points the grid shares with a table already built take its feasible plans
-  as they are, and the warm-start tree grows from them (:mod:`lut.build.reuse`).
+* **Reuse.** ``--reuse TABLE`` (repeatable): the points the grid shares with tables already built take their
+  feasible plans as they are (the cheapest where several hold one), and the warm-start tree grows from them
+  (:mod:`lut.build.reuse`).
 * **Determinism.** Same config (and reused table) ⇒ same warm-start tree ⇒ same table (up to points that hit
   the time limit, which depends on the machine).
 """
@@ -30,7 +31,7 @@ from lut.build.backends import parallel_backend
 from lut.build.existing_work import complete_summary, existing_work, journal_path
 from lut.build.options import BuildOptions, BuildSummary, check_options
 from lut.build.progress import Progress
-from lut.build.reuse import Continuation, reuse_continuation, reused_points, weighted_cost
+from lut.build.reuse import Continuation, cheapest_reused, reuse_continuation, weighted_cost
 from lut.output.paths import Output, check_outputs
 from lut.solve.point_process import run_point
 from lut.solve.point_server import stop_all
@@ -81,14 +82,15 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     check_options(options)
     config, scenario, grid = prepare(grid_path)
     jpath = journal_path(table_path)
-    inputs = [grid_path, config.scenario_path, *scenario.input_files, *([options.reuse] if options.reuse else [])]
+    inputs = [grid_path, config.scenario_path, *scenario.input_files, *options.reuse]
     check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
     mhash = table_hash(scenario)
-    reused = reused_points(options.reuse, grid, config.kind, mhash) if options.reuse else {}
+    cost_of = weighted_cost(scenario) if options.reuse else None
+    reused = cheapest_reused(options.reuse, grid, config.kind, mhash, cost_of) if cost_of else {}
     complete = existing_work(table_path, jpath, options, mhash, config)
     if complete is not None:
         return complete_summary(complete, t_start)
-    order = reuse_continuation(grid, reused, weighted_cost(scenario)) if reused else grid.continuation_order()
+    order = reuse_continuation(grid, reused, cost_of) if cost_of else grid.continuation_order()
     done, solved_now, reused_now = _journaled_sweep(grid, config, options, jpath, mhash,
                                                    Sweep(order, reused, on_result))
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),

@@ -261,9 +261,7 @@ class TableQuery:
         fixed = self._repair_now_or_later(first, deadline, latency, later)
         if fixed is not None:
             return fixed
-        corners = [c for c in self.corner_candidates(state) if [c.corner] != found.corners]
-        cheap = {c.corner for c in cheapest(corners)}
-        for candidate in sorted(corners, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]:
+        for candidate in self.corner_order([c for c in self.corner_candidates(state) if [c.corner] != found.corners]):
             if self._corners_out_of_time(deadline, stage):
                 break
             plan, report = self.simulate_and_verify(state, candidate.parameters, {})
@@ -283,6 +281,13 @@ class TableQuery:
             if fixed is not None:
                 return fixed
         return best
+
+    @staticmethod
+    def corner_order(corners: list[Candidate]) -> list[Candidate]:
+        """The corners the corner stage tries, in order: those at the cell's lowest cost first, each group heaviest
+        first, at most :data:`CORNER_TRIES`."""
+        cheap = {c.corner for c in cheapest(corners)}
+        return sorted(corners, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]
 
     def _repair_now_or_later(self, made: Attempt, deadline: Deadline, latency: dict[str, float],
                              later: list[Attempt]) -> Attempt | None:

@@ -63,15 +63,16 @@ def _grid_file(tmp_path: Path, name: str, rates: int, scenario: Path = ENERGY, r
     return path
 
 
-def _write_coarse(path: Path, grid_file: Path, infeasible: tuple[float, float] | None = None) -> None:
-    """The coarse grid's table: the stand-in solver's cold plans with the base offsets of :data:`OFFSETS`."""
+def _write_coarse(path: Path, grid_file: Path, infeasible: tuple[float, float] | None = None,
+                  offsets: dict[tuple[float, float], tuple[float, float]] = OFFSETS) -> None:
+    """The coarse grid's table: the stand-in solver's cold plans with the base offsets ``offsets`` [m]."""
     config, scenario, grid = prepare(grid_file)
     records = {}
     for p in range(grid.n_points):
         state = grid.state(p)
         rec = fake_solve(str(config.scenario_path), p, state.attitude_wxyz, state.omega_body_rad_s, None, 0.0)
         rate, phase = _rate_phase(grid, p)
-        rec["base_offset_m"] = np.array(OFFSETS.get((rate, phase), (0.0, 0.0)))
+        rec["base_offset_m"] = np.array(offsets.get((rate, phase), (0.0, 0.0)))
         if (rate, phase) == infeasible:
             rec["status"], rec["failure_reason"] = "infeasible", "stand-in: joint 3 past its limit"
         records[p] = rec
@@ -105,7 +106,7 @@ def test_shared_points_are_taken_and_the_rest_start_from_the_cheapest_adjacent_o
     _write_coarse(tmp_path / "coarse.h5", coarse_grid)
     out = tmp_path / "fine.h5"
     summary = run_build(fine_grid, out, BuildOptions(jobs=2, solver=FAKE, progress=False,
-                                                     reuse=str(tmp_path / "coarse.h5")))
+                                                     reuse=(str(tmp_path / "coarse.h5"),)))
     assert (summary.reused_now, summary.solved_now, summary.counts["feasible"]) == (9, 6, 15)
     coarse, fine = Table.open(tmp_path / "coarse.h5"), Table.open(out)
     _, _, grid = prepare(fine_grid)
@@ -128,14 +129,31 @@ def test_an_infeasible_point_of_the_reused_table_is_solved_again(tmp_path):
     coarse_grid, fine_grid = _grid_file(tmp_path, "coarse", 3), _grid_file(tmp_path, "fine", 5)
     _write_coarse(tmp_path / "coarse.h5", coarse_grid, infeasible=(3.5, 15.0))
     summary = run_build(fine_grid, tmp_path / "fine.h5", BuildOptions(jobs=1, solver=FAKE, progress=False,
-                                                                      reuse=str(tmp_path / "coarse.h5")))
+                                                                      reuse=(str(tmp_path / "coarse.h5"),)))
     assert (summary.reused_now, summary.solved_now, summary.counts["feasible"]) == (8, 7, 15)
+
+
+def test_of_several_tables_holding_a_point_the_cheapest_plan_is_taken(tmp_path):
+    coarse_grid = _grid_file(tmp_path, "coarse", 3)
+    _write_coarse(tmp_path / "a.h5", coarse_grid)
+    other = {key: (0.0, 0.0) if key[1] == 15.0 else (1.0, 1.0) for key in OFFSETS}  # cheaper at 15° only
+    _write_coarse(tmp_path / "b.h5", coarse_grid, offsets=other, infeasible=(4.0, 15.0))
+    out = tmp_path / "merged.h5"
+    summary = run_build(coarse_grid, out, BuildOptions(jobs=1, solver=FAKE, progress=False,
+                                                       reuse=(str(tmp_path / "a.h5"), str(tmp_path / "b.h5"))))
+    assert (summary.reused_now, summary.solved_now) == (9, 0)  # every point held: nothing solved
+    merged, (_, _, grid) = Table.open(out), prepare(coarse_grid)
+    for p in range(grid.n_points):
+        rate, phase = _rate_phase(grid, p)
+        cheaper_in_b = phase == 15.0 and rate != 4.0  # b's 4 °/s, 15° plan is infeasible: a's is taken
+        expected = other[(rate, phase)] if cheaper_in_b else OFFSETS[(rate, phase)]
+        np.testing.assert_array_equal(merged.field("base_offset_m")[p], expected, err_msg=f"point {p}")
 
 
 def test_an_interrupted_reusing_build_resumes_to_the_same_table(tmp_path):
     coarse_grid, fine_grid = _grid_file(tmp_path, "coarse", 3), _grid_file(tmp_path, "fine", 5)
     _write_coarse(tmp_path / "coarse.h5", coarse_grid)
-    reuse = str(tmp_path / "coarse.h5")
+    reuse = (str(tmp_path / "coarse.h5"),)
     reference = tmp_path / "ref.h5"
     run_build(fine_grid, reference, BuildOptions(jobs=1, solver=FAKE, progress=False, reuse=reuse))
 
@@ -161,10 +179,10 @@ def test_a_table_of_another_scenario_or_without_shared_points_is_refused_before_
     out = tmp_path / "fine.h5"
     for name, words in cases.items():
         with pytest.raises(LutgenError, match=f"--reuse.*{words}"):
-            run_build(fine_grid, out, BuildOptions(jobs=1, solver=FAKE, progress=False, reuse=str(tmp_path / name)))
+            run_build(fine_grid, out, BuildOptions(jobs=1, solver=FAKE, progress=False, reuse=(str(tmp_path / name),)))
         assert not out.exists() and not journal_path(out).exists()
     with pytest.raises(OutputPathError, match="is an input"):
-        run_build(fine_grid, out, BuildOptions(jobs=1, solver=FAKE, progress=False, reuse=str(out)))
+        run_build(fine_grid, out, BuildOptions(jobs=1, solver=FAKE, progress=False, reuse=(str(out),)))
 
 
 def test_the_cli_names_a_bad_reuse_table_in_one_line(tmp_path):
