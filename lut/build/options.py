@@ -29,6 +29,7 @@ class BuildOptions:
     progress: bool = True
     robust_sigmas: tuple[float, float] | None = None  # --robust: 1-σ attitude [deg] and body rate [deg/s]
     robust_samples: int = 20  # drawn states per feasible point with --robust
+    cold: bool = False  # --cold: every point planned cold, none warm-started from a neighbour
     reuse: tuple[str, ...] = ()  # --reuse: tables whose feasible plans at this grid's points are taken (the cheapest)
 
     def solver_kwargs(self) -> dict[str, float]:

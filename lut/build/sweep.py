@@ -14,6 +14,8 @@
 * **Reuse.** ``--reuse TABLE`` (repeatable): the points the grid shares with tables already built take their
   feasible plans as they are (the cheapest where several hold one), and the warm-start tree grows from them
   (:mod:`lut.build.reuse`).
+* **Cold (``--cold``).** Every point not reused is planned cold, from no neighbour: one layer, all in parallel; a
+  further start whose table merges with others by ``--reuse``.
 * **Determinism.** Same config (and reused table) ⇒ same warm-start tree ⇒ same table (up to points that hit
   the time limit, which depends on the machine).
 """
@@ -31,7 +33,7 @@ from lut.build.backends import parallel_backend
 from lut.build.existing_work import complete_summary, existing_work, journal_path
 from lut.build.options import BuildOptions, BuildSummary, check_options
 from lut.build.progress import Progress
-from lut.build.reuse import Continuation, cheapest_reused, reuse_continuation, weighted_cost
+from lut.build.reuse import Continuation, CostOf, cheapest_reused, reuse_continuation, weighted_cost
 from lut.output.paths import Output, check_outputs
 from lut.solve.point_process import run_point
 from lut.solve.point_server import stop_all
@@ -55,6 +57,14 @@ def prepare(grid_path: str | Path) -> tuple[GridConfig, Scenario, Grid]:
     config = load_grid(grid_path)
     scenario = load_scenario(config.scenario_path)
     return config, scenario, Grid(config, scenario.target.inertia_body_kg_m2, scenario.target_state.as_state())
+
+
+def _build_order(grid: Grid, reused: dict[int, PointResult], cost_of: CostOf | None, cold: bool) -> Continuation:
+    """Every point once with its warm-start parent: none under ``--cold`` (one layer), else grown from the reused
+    points (:func:`reuse_continuation`) or from the seed point (:meth:`Grid.continuation_order`)."""
+    if cold:
+        return [(p, None) for p in sorted(reused)] + [(p, None) for p in range(grid.n_points) if p not in reused]
+    return reuse_continuation(grid, reused, cost_of) if cost_of else grid.continuation_order()
 
 
 def continuation_layers(order: Continuation) -> list[Continuation]:
@@ -90,7 +100,7 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     complete = existing_work(table_path, jpath, options, mhash, config)
     if complete is not None:
         return complete_summary(complete, t_start)
-    order = reuse_continuation(grid, reused, cost_of) if cost_of else grid.continuation_order()
+    order = _build_order(grid, reused, cost_of, options.cold)
     done, solved_now, reused_now = _journaled_sweep(grid, config, options, jpath, mhash,
                                                    Sweep(order, reused, on_result))
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),

@@ -41,6 +41,9 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
                    "(deg/s) error (robustness/* fields; inspect --plot maps it).")
 @click.option("--robust-samples", type=int, default=20, show_default=True,
               help="With --robust: drawn true states per feasible point.")
+@click.option("--cold", is_flag=True,
+              help="Plan every point cold, none warm-started from a neighbour (all points independent, in parallel): "
+                   "another start for a table of the cheapest plans, merged with others by --reuse.")
 @click.option("--reuse", "reuse_paths", type=click.Path(dir_okay=False), multiple=True, metavar="TABLE",
               help="A table built for the same scenario (repeatable): its feasible plans at the points this grid "
                    "shares with it are taken as they are (the cheapest where several tables hold a point), and every "
@@ -48,7 +51,7 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
 @user_errors
 def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str | None, point_timeout_s: float,
           resume: bool, force: bool, no_progress: bool, robust_sigmas: str | None, robust_samples: int,
-          reuse_paths: tuple[str, ...]) -> None:
+          cold: bool, reuse_paths: tuple[str, ...]) -> None:
     """Solve every point of GRID_PATH and store the verified plans in an HDF5 look-up table.
 
     Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
@@ -63,7 +66,7 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
         sigmas = (att_deg, rate_deg_s)
     options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
                            resume=resume, force=force, progress=not no_progress,
-                           robust_sigmas=sigmas, robust_samples=robust_samples, reuse=reuse_paths)
+                           robust_sigmas=sigmas, robust_samples=robust_samples, cold=cold, reuse=reuse_paths)
     summary = run_build(grid_path, out_path, options)
     c = summary.counts
     if summary.outcome is BuildOutcome.ALREADY_COMPLETE:

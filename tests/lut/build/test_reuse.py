@@ -1,5 +1,6 @@
-"""``lutgen build --reuse``: a finer grid takes a coarser table's feasible plans where its points coincide and grows
-the rest from the cheapest adjacent one (with the fast stand-in solver, whose plan records its warm start)."""
+"""A build's starts: ``--reuse`` (a finer grid takes a coarser table's feasible plans where its points coincide and
+grows the rest from the cheapest adjacent one) and ``--cold`` (no warm start at all), with the fast stand-in solver,
+whose plan records its warm start."""
 
 from __future__ import annotations
 
@@ -221,3 +222,24 @@ def test_the_cheapest_reused_neighbour_is_the_parent_and_a_cost_that_is_not_a_nu
     costs[c] = 2.0
     parents = dict(reuse_continuation(grid, reused, lambda r: costs[r.point]))
     assert parents[grid.flat_of((1, 0, 1))] == min(b, c)  # a tie: the lower index
+
+
+def test_a_cold_build_warm_starts_no_point_and_keeps_what_it_reuses(tmp_path):
+    coarse_grid, fine_grid = _grid_file(tmp_path, "coarse", 3), _grid_file(tmp_path, "fine", 5)
+    _write_coarse(tmp_path / "coarse.h5", coarse_grid)
+    cold = tmp_path / "cold.h5"
+    summary = run_build(fine_grid, cold, BuildOptions(jobs=2, solver=FAKE, progress=False, cold=True))
+    assert (summary.reused_now, summary.solved_now) == (0, 15)
+    both = tmp_path / "both.h5"
+    run_build(fine_grid, both, BuildOptions(jobs=2, solver=FAKE, progress=False, cold=True,
+                                            reuse=(str(tmp_path / "coarse.h5"),)))
+    cold_table, both_table, coarse = Table.open(cold), Table.open(both), Table.open(tmp_path / "coarse.h5")
+    _, _, grid = prepare(fine_grid)
+    for p in range(grid.n_points):
+        np.testing.assert_array_equal(_warm_parent_params(fine_grid, cold_table, p), 0.0, err_msg=f"point {p}")
+        rate, phase = _rate_phase(grid, p)
+        if rate in (3.0, 3.5, 4.0):
+            expected = coarse.field("approach_params")[_coarse_point(coarse, rate, phase)]
+            np.testing.assert_array_equal(both_table.field("approach_params")[p], expected)
+        else:
+            np.testing.assert_array_equal(_warm_parent_params(fine_grid, both_table, p), 0.0, err_msg=f"point {p}")
