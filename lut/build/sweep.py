@@ -16,7 +16,7 @@
   (:mod:`lut.build.reuse`).
 * **Cold (``--cold``).** Every point not reused is planned cold, from no neighbour: one layer, all in parallel; a
   further start whose table merges with others by ``--reuse``.
-* **Determinism.** Same config (and reused table) ⇒ same warm-start tree ⇒ same table (up to points that hit
+* **Determinism.** Same config (and reused tables) ⇒ same warm-start tree ⇒ same table (up to points that hit
   the time limit, which depends on the machine).
 """
 
