@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lut.table.grid import COORD_TOL, Grid
+from lut.table.grid import Grid
 from lut.table.point_result import PointResult, PointStatus
 from lut.table.records import from_record
 from lut.table.schema import TableError
@@ -64,27 +64,13 @@ def reused_points(table_path: str | Path, grid: Grid, grid_kind: str, model_hash
     found: dict[int, PointResult] = {}
     for p in np.flatnonzero(table.status == PointStatus.FEASIBLE.code):
         coords = [float(v[i]) for v, i in zip(table.axis_values, np.unravel_index(p, shape), strict=True)]
-        point = _grid_point_at(grid, coords)
+        point = grid.point_at(coords)
         if point is not None:
             found[point] = replace(from_record(table.record(int(p))), point=point)
     if not found:
         raise LutgenError(f"--reuse {table_path}: none of its feasible points lies on this grid (axes "
                           f"{', '.join(grid.axis_names)})")
     return found
-
-
-def _grid_point_at(grid: Grid, coords: list[float]) -> int | None:
-    """The grid point at ``coords`` (each axis within :data:`COORD_TOL`, periodic axes modulo 360°), or ``None``."""
-    index = []
-    for ax, values, x in zip(grid.axes, grid.axis_values, coords, strict=True):
-        d = values - x
-        if ax.periodic:
-            d = (d + 180.0) % 360.0 - 180.0
-        hits = np.flatnonzero(np.abs(d) <= COORD_TOL)
-        if hits.size == 0:
-            return None
-        index.append(int(hits[0]))
-    return grid.flat_of(index)
 
 
 def reuse_continuation(grid: Grid, reused: dict[int, PointResult], cost_of: CostOf) -> Continuation:
@@ -122,8 +108,4 @@ def weighted_cost(scenario: Scenario) -> CostOf:
 
     scorer = CostScorer(scenario, FreeFloatingModel(scenario.robot), approach_spline(scenario))
 
-    def cost_of(result: PointResult) -> float:
-        assert result.parameters is not None  # reused results are feasible plans
-        return scorer.score("", result.parameters.approach, result.costs.get("min_distance_m", math.nan)).total
-
-    return cost_of
+    return lambda result: scorer.score_stored(f"point {result.point}", result).total

@@ -63,7 +63,7 @@ def _build_order(grid: Grid, reused: dict[int, PointResult], cost_of: CostOf | N
     """Every point once with its warm-start parent: none under ``--cold`` (one layer), else grown from the reused
     points (:func:`reuse_continuation`) or from the seed point (:meth:`Grid.continuation_order`)."""
     if cold:
-        return [(p, None) for p in sorted(reused)] + [(p, None) for p in range(grid.n_points) if p not in reused]
+        return [(p, None) for p in range(grid.n_points)]
     return reuse_continuation(grid, reused, cost_of) if cost_of else grid.continuation_order()
 
 

@@ -214,9 +214,7 @@ class TableQuery:
         """The weighted cost terms of a feasible point's stored plan, from its parameters and verified clearance (NaN
         without ``costs/min_distance_m``), scored once per table."""
         if point not in self._corner_costs:
-            stored = self.points[point]
-            self._corner_costs[point] = self.scorer.score(f"corner {point}", stored.parameters.approach,
-                                                          stored.costs.get("min_distance_m", float("nan")))
+            self._corner_costs[point] = self.scorer.score_stored(f"corner {point}", self.points[point])
         return self._corner_costs[point]
 
     def table_plan(self, state: TargetState, found: TableAnswer, deadline: Deadline, latency: dict[str, float],

@@ -283,14 +283,9 @@ class Grid:
     def normalised_distance(self, a: ArrayLike, b: ArrayLike) -> float:
         """Distance between coordinates in grid steps (axis by axis; phase circular; 1 unit on fixed axes)."""
         d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
-        for i, ax in enumerate(self.axes):
-            if ax.periodic:
-                d[i] = (d[i] + 180.0) % 360.0 - 180.0
-            if ax.count > 1:
-                d[i] /= ax.step
+        d = [((x + 180.0) % 360.0 - 180.0 if ax.periodic else x) / (ax.step if ax.count > 1 else 1.0)
+             for ax, x in zip(self.axes, d, strict=True)]
         return float(np.linalg.norm(d))
-
-    # ---- continuation ---------------------------------------------------------------------------------
 
     def neighbours(self, flat: int) -> list[int]:
         """Axis-adjacent grid points, ascending. Across the phase wrap only when the wrap gap is one step."""
@@ -315,13 +310,17 @@ class Grid:
         if self.default_coordinates is None:
             return self.flat_of([n // 2 for n in self._shape])
         # the distance is a sum over axes, so the nearest point is the nearest value on each axis
-        idx = []
-        for ax, vals, x in zip(self.axes, self._values, self.default_coordinates, strict=True):
-            d = vals - x
-            if ax.periodic:
-                d = (d + 180.0) % 360.0 - 180.0
-            idx.append(int(np.argmin(np.abs(d))))
-        return self.flat_of(idx)
+        return self.flat_of([int(np.argmin(d)) for d in self._axis_distances(self.default_coordinates)])
+
+    def point_at(self, coords: ArrayLike) -> int | None:
+        """The grid point at ``coords`` (each axis within :data:`COORD_TOL`, periodic axes modulo 360°), or ``None``."""
+        hits = [np.flatnonzero(d <= COORD_TOL) for d in self._axis_distances(coords)]
+        return self.flat_of([int(h[0]) for h in hits]) if all(h.size for h in hits) else None
+
+    def _axis_distances(self, coords: ArrayLike) -> list[Array]:
+        """Per axis, the distance of every grid value to the coordinate (periodic axes: the shorter way round)."""
+        return [np.abs((v - x + 180.0) % 360.0 - 180.0 if ax.periodic else v - x)
+                for ax, v, x in zip(self.axes, self._values, np.asarray(coords, dtype=float), strict=True)]
 
     def continuation_order(self) -> list[tuple[int, int | None]]:
         """Every point once as ``(point, warm-start parent)``: breadth-first from :meth:`seed_point`

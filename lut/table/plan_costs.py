@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lut.table.point_result import PointResult
 from planner.config.scenario import Scenario
 from planner.model.freefloating import FreeFloatingModel
 from planner.nlp.bspline import UniformCubicBSpline
@@ -89,6 +90,12 @@ class CostScorer:
                                      np.asarray(approach.params, dtype=float))
         q_end = np.asarray(self.spline.evaluate(vertices, [self.scenario.phases.approach_s]), dtype=float)[0]
         return manipulability(np.asarray(self.ff.gen_jacobian(q_end)[0], dtype=float))
+
+    def score_stored(self, label: str, stored: PointResult) -> CostBreakdown:
+        """The weighted terms of a feasible table point's plan, from its parameters and verified clearance (NaN
+        without ``costs/min_distance_m``)."""
+        assert stored.parameters is not None, "only a feasible point's plan has parameters to score"
+        return self.score(label, stored.parameters.approach, stored.costs.get("min_distance_m", float("nan")))
 
     def score(self, label: str, approach: ApproachParameters, min_distance_m: float) -> CostBreakdown:
         """The weighted terms of ``approach`` whose verified smallest distance is ``min_distance_m`` [m]."""

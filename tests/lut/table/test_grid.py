@@ -511,3 +511,21 @@ def test_roll_and_yaw_round_the_whole_turn_wrap_and_pitch_never_does(scenarios):
     rolls = {t.coordinates(c)[3] for c in cell.corners}
     yaws = {t.coordinates(c)[5] for c in cell.corners}
     assert rolls == {150.0, -180.0} and yaws == {-180.0, -135.0}  # 179.999° wraps next to -180°; -179.999° is there
+
+
+def test_point_at_finds_a_grid_point_within_the_tolerance_and_across_the_phase_wrap(grids):
+    g = grids["three_axes"]  # rates 3, 3.5, 4; axes 80, 90; phases 0, 10, 20, 30
+    assert g.point_at([3.5, 90.0, 20.0]) == g.flat_of((1, 1, 2))
+    assert g.point_at([3.0 - 0.9e-6, 80.0 + 0.9e-6, 30.0 + 0.9e-6]) == g.flat_of((0, 0, 3))  # touching: on it
+    assert g.point_at([4.0, 80.0, 360.0]) == g.flat_of((2, 0, 0))  # a whole turn is the same phase
+    assert g.point_at([4.0, 80.0, -0.5e-6]) == g.flat_of((2, 0, 0))  # just below 0° is 0°, not 359.9999995°
+    for off in ([3.0 - 1.1e-6, 80.0, 0.0], [3.25, 80.0, 0.0], [3.0, 85.0, 0.0], [3.0, 80.0, 5.0], [3.0, 80.0, 180.0]):
+        assert g.point_at(off) is None, off
+    demo = grids["demo"]  # its spin axis fixed at one value
+    fixed = [i for i, ax in enumerate(demo.axes) if ax.count == 1]
+    assert fixed, "the demo grid fixes an axis"
+    on = demo.coordinates(0)
+    assert demo.point_at(on) == 0
+    on[fixed[0]] += 1.0
+    assert demo.point_at(on) is None
+    assert all(g.point_at(g.coordinates(p)) == p for p in range(g.n_points))
