@@ -13,14 +13,16 @@ several are adjacent; points further away grow from those, breadth first.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from lut.table.grid import Grid
 from lut.table.point_result import PointResult, PointStatus
+from lut.table.provenance import ReusedSource, provenance_text
 from lut.table.records import from_record
 from lut.table.schema import TableError
 from lut.table.store import Table
@@ -31,28 +33,55 @@ Continuation = list[tuple[int, int | None]]  # (point, its warm-start parent or 
 CostOf = Callable[[PointResult], float]
 
 
+@dataclass(frozen=True)
+class ReusedPlans:
+    """The plans ``--reuse`` takes: ``results`` (this grid's point → result) and ``sources`` (point → the index of
+    the table it came from in ``tables``, the paths as given, built at ``built_utc``)."""
+
+    tables: tuple[str, ...]
+    built_utc: tuple[str, ...]
+    results: dict[int, PointResult]
+    sources: dict[int, int]
+
+    def provenance(self, table_dir: Path) -> str:
+        """The table attribute ``reused_from`` (:mod:`lut.table.provenance`): per reused table, in the order given,
+        its path relative to ``table_dir`` (the new table's folder), when it was built and the points taken from it."""
+        return provenance_text([ReusedSource(os.path.relpath(Path(path).absolute(), table_dir.absolute()),
+                                             built, tuple(sorted(p for p, i in self.sources.items() if i == k)))
+                                for k, (path, built) in enumerate(zip(self.tables, self.built_utc, strict=True))])
+
+
 def cheapest_reused(table_paths: Sequence[str | Path], grid: Grid, grid_kind: str, model_hash: str,
-                    cost_of: CostOf) -> dict[int, PointResult]:
+                    cost_of: CostOf) -> ReusedPlans:
     """:func:`reused_points` of every table; where several hold a point, the plan with the lowest ``cost_of`` (a
     NaN cost loses; a tie keeps the table given first)."""
     chosen: dict[int, PointResult] = {}
-    for path in table_paths:
-        for point, result in reused_points(path, grid, grid_kind, model_hash).items():
+    sources: dict[int, int] = {}
+    tables = [_opened(path) for path in table_paths]
+    for k, table in enumerate(tables):
+        for point, result in reused_points(table, grid, grid_kind, model_hash).items():
             if point not in chosen or _cost(result, cost_of) < _cost(chosen[point], cost_of):
                 chosen[point] = result
-    return chosen
+                sources[point] = k
+    return ReusedPlans(tuple(str(p) for p in table_paths), tuple(str(t.attrs["created_utc"]) for t in tables),
+                       chosen, sources)
 
 
-def reused_points(table_path: str | Path, grid: Grid, grid_kind: str, model_hash: str) -> dict[int, PointResult]:
-    """The feasible results of ``table_path`` at this grid's points, re-indexed to this grid (point → result).
+def _opened(table_path: str | Path) -> Table:
+    """The table ``--reuse`` names, or :class:`LutgenError` naming ``--reuse`` when it cannot be read."""
+    try:
+        return Table.open(table_path)
+    except TableError as exc:
+        raise LutgenError(f"--reuse: {exc}") from None
+
+
+def reused_points(table: Table, grid: Grid, grid_kind: str, model_hash: str) -> dict[int, PointResult]:
+    """The feasible results of ``table`` at this grid's points, re-indexed to this grid (point → result).
 
     :class:`LutgenError` naming ``--reuse`` when the table answers for another model or grid kind, has other
     axes, or shares no feasible point with the grid.
     """
-    try:
-        table = Table.open(table_path)
-    except TableError as exc:
-        raise LutgenError(f"--reuse: {exc}") from None
+    table_path = table.path
     if table.model_hash != model_hash:
         raise LutgenError(f"--reuse {table_path}: built for another robot, target or scenario (model hash "
                           f"{table.model_hash[:12]}… against {model_hash[:12]}…); its plans are not this grid's")

@@ -33,7 +33,7 @@ from lut.build.backends import parallel_backend
 from lut.build.existing_work import complete_summary, existing_work, journal_path
 from lut.build.options import BuildOptions, BuildSummary, check_options
 from lut.build.progress import Progress
-from lut.build.reuse import Continuation, CostOf, cheapest_reused, reuse_continuation, weighted_cost
+from lut.build.reuse import Continuation, CostOf, ReusedPlans, cheapest_reused, reuse_continuation, weighted_cost
 from lut.output.paths import Output, check_outputs
 from lut.solve.point_process import run_point
 from lut.solve.point_server import stop_all
@@ -96,17 +96,19 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
     mhash = table_hash(scenario)
     cost_of = weighted_cost(scenario) if options.reuse else None
-    reused = cheapest_reused(options.reuse, grid, config.kind, mhash, cost_of) if cost_of else {}
+    reused = (cheapest_reused(options.reuse, grid, config.kind, mhash, cost_of) if cost_of
+              else ReusedPlans((), (), {}, {}))
     complete = existing_work(table_path, jpath, options, mhash, config)
     if complete is not None:
         return complete_summary(complete, t_start)
-    order = _build_order(grid, reused, cost_of, options.cold)
+    order = _build_order(grid, reused.results, cost_of, options.cold)
     done, solved_now, reused_now = _journaled_sweep(grid, config, options, jpath, mhash,
-                                                   Sweep(order, reused, on_result))
+                                                   Sweep(order, reused.results, on_result))
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
                 grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
                 records={p: to_record(r) for p, r in done.items()}, n_points=grid.n_points,
-                scenario_path=os.path.relpath(config.scenario_path, table_path.absolute().parent))
+                scenario_path=os.path.relpath(config.scenario_path, table_path.absolute().parent),
+                reused_from=reused.provenance(table_path.parent) if reused.tables else None)
     counts = {status.value: sum(1 for r in done.values() if r.status is status) for status in PointStatus}
     counts["pending"] = grid.n_points - len(done)
     if counts["pending"] == 0:

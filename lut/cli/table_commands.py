@@ -88,7 +88,8 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
               help="Also write maps of feasibility, costs and solve time over the grid axes (PNG) to DIR.")
 @user_errors
 def inspect(table_path: str, as_json: bool, plot_dir: str | None) -> None:
-    """Summarise a look-up table: grid, point counts, cost and solve-time statistics, model hash.
+    """Summarise a look-up table: grid, point counts, the tables a --reuse build took plans from, cost and
+    solve-time statistics, model hash.
 
     With --plot DIR: heatmaps over two grid axes (small multiples over a third and beyond; a line plot
     for one axis) of feasibility, each cost and the solve time.
@@ -115,6 +116,8 @@ def inspect(table_path: str, as_json: bool, plot_dir: str | None) -> None:
     for name, values in info["axes"].items():
         click.echo(f"axis       {name}: {len(values)} values in [{min(values):g}, {max(values):g}]")
     click.echo("points     " + ", ".join(f"{k} {v}" for k, v in info["counts"].items()) + f" (of {table.n_points})")
+    for source in table.reused_from:
+        click.echo(f"reused     {len(source.points)} points from {source.table} (built {source.created_utc})")
     for name, s in [("solve time [s]", info["solve_time_s"])] + [(k, v) for k, v in info["costs"].items()]:
         if s["min"] is not None:
             click.echo(f"{name:<22} min {s['min']:.4g}  median {s['median']:.4g}  max {s['max']:.4g}")
@@ -141,6 +144,8 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
         "axes": {name: [float(x) for x in values] for name, values in zip(table.axis_names, table.axis_values,
                                                                             strict=True)},
         "counts": table.counts(), "n_points": table.n_points,
+        "reused_from": [{"table": s.table, "created_utc": s.created_utc, "points": list(s.points)}
+                        for s in table.reused_from],
         "solve_time_s": stats(table.field("solve_time_s")),
         "costs": {key: stats(table.field(f"costs/{key}")) for key in
                   ("min_distance_m", "approach_energy_m2", "peak_grasp_torque_nm")

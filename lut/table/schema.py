@@ -5,7 +5,9 @@ Root attributes
     config's text), ``scenario_text``, ``model_hash`` (:func:`lut.table.model_identity.model_hash` of
     robot URDF + target + scenario), ``created_utc`` (ISO 8601), ``grid_kind``; ``scenario_path`` when
     the writer gave one (``lutgen build`` writes it relative to the table's folder, so a table and its
-    configs can move together).
+    configs can move together); ``reused_from`` when a ``lutgen build --reuse`` wrote it (JSON, per reused table
+    its path relative to the table's folder, ``created_utc`` and the points taken from it:
+    :mod:`lut.table.provenance`).
 Group ``grid/``
     one 1-D float64 dataset per axis (its values); attribute ``axis_names`` (ordered list of str).
 Group ``points/`` — arrays over the flat point index ``0 … n_points-1``
@@ -40,14 +42,15 @@ STATUS_NAMES = {code: name for name, code in STATUS_CODES.items()}
 REQUIRED_ATTRS = ("schema_version", "lutgen_version", "config_text", "scenario_text", "model_hash", "created_utc",
                   "grid_kind")
 TEXT_ATTRS = ("lutgen_version", "config_text", "scenario_text", "model_hash", "created_utc", "grid_kind")
+OPTIONAL_TEXT_ATTRS = ("scenario_path", "reused_from")
 BASE_FIELDS = ("status", "failure_reason", "solve_time_s", "iterations")
 TEXT_FIELDS = frozenset({"failure_reason"})  # every other per-point dataset holds numbers
 MISSING_FLOAT = float("nan")
 MISSING_INT = -1
 MISSING_STR = ""
 
-__all__ = ["BASE_FIELDS", "MISSING_FLOAT", "MISSING_INT", "MISSING_STR", "REQUIRED_ATTRS", "SCHEMA_VERSION",
-           "STATUS_CODES", "STATUS_NAMES", "TEXT_ATTRS", "TEXT_FIELDS", "TableError"]
+__all__ = ["BASE_FIELDS", "MISSING_FLOAT", "MISSING_INT", "MISSING_STR", "OPTIONAL_TEXT_ATTRS", "REQUIRED_ATTRS",
+           "SCHEMA_VERSION", "STATUS_CODES", "STATUS_NAMES", "TEXT_ATTRS", "TEXT_FIELDS", "TableError"]
 
 
 class TableError(LutgenError):

@@ -13,8 +13,10 @@ import h5py
 import numpy as np
 
 from lut.table.bounded_read import ProbeOutcome, probe_read
+from lut.table.provenance import ReusedSource, reused_sources
 from lut.table.schema import (
     BASE_FIELDS,
+    OPTIONAL_TEXT_ATTRS,
     REQUIRED_ATTRS,
     SCHEMA_VERSION,
     STATUS_CODES,
@@ -68,7 +70,7 @@ def _root_attributes(path: Path, f: h5py.File) -> dict[str, Any]:
     if missing:
         raise TableError(f"{path}: missing root attribute(s) {', '.join(missing)}")
     attrs = {name: _plain(f.attrs[name]) for name in f.attrs}
-    for name in (*TEXT_ATTRS, *(["scenario_path"] if "scenario_path" in attrs else [])):
+    for name in (*TEXT_ATTRS, *(name for name in OPTIONAL_TEXT_ATTRS if name in attrs)):
         if not isinstance(attrs[name], str):
             raise TableError(f"{path}: root attribute {name} must be text, got {type(attrs[name]).__name__}")
     return attrs
@@ -131,7 +133,8 @@ class Table:
     """A look-up table read fully into memory (the file is closed again when :meth:`open` returns).
 
     ``attrs`` (root attributes as Python values), ``axis_names``, ``axis_values`` (float64 arrays),
-    ``status`` (int8 codes, :data:`STATUS_CODES`), ``n_points``, ``model_hash``, ``path``.
+    ``status`` (int8 codes, :data:`STATUS_CODES`), ``n_points``, ``model_hash``, ``path``, ``reused_from`` (the
+    tables a ``--reuse`` build took plans from, :mod:`lut.table.provenance`; empty for any other table).
     """
 
     def __init__(self, path: Path, attrs: dict[str, Any], axis_names: list[str], axis_values: list[np.ndarray],
@@ -144,6 +147,7 @@ class Table:
         self.status: np.ndarray = fields["status"]
         self.n_points = int(self.status.shape[0])
         self.model_hash = str(attrs["model_hash"])
+        self.reused_from: tuple[ReusedSource, ...] = reused_sources(path, attrs.get("reused_from"), self.n_points)
 
     @classmethod
     def open(cls, path: str | Path) -> Table:

@@ -140,7 +140,7 @@ def _filled_arrays(records: dict[int, dict[str, Any]], specs: dict[str, FieldSpe
 
 def write_table(path: Path, *, grid_axes: list[tuple[str, np.ndarray]], grid_kind: str, config_text: str,
                 scenario_text: str, model_hash: str, records: dict[int, dict[str, Any]], n_points: int,
-                scenario_path: str | None = None) -> None:
+                scenario_path: str | None = None, reused_from: str | None = None) -> None:
     """Write the table atomically: ``<path>.tmp`` beside ``path`` (``t.h5`` → ``t.h5.tmp``), fsync, rename.
 
     ``records`` maps point index → flat record (:mod:`lut.table.schema`); points without a record are
@@ -157,6 +157,8 @@ def write_table(path: Path, *, grid_axes: list[tuple[str, np.ndarray]], grid_kin
              "created_utc": datetime.now(UTC).isoformat(timespec="seconds"), "grid_kind": grid_kind}
     if scenario_path is not None:
         attrs["scenario_path"] = str(scenario_path)
+    if reused_from is not None:
+        attrs["reused_from"] = reused_from
     tmp = path.with_name(path.name + ".tmp")
     try:
         _write_h5(tmp, attrs, axes, status, arrays)

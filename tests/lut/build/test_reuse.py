@@ -4,6 +4,7 @@ whose plan records its warm start."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from lut.build.sweep import prepare, run_build
 from lut.output.paths import OutputPathError
 from lut.table.model_identity import table_hash
 from lut.table.point_result import PointResult, PointStatus
+from lut.table.provenance import ReusedSource
 from lut.table.store import Table
 from lut.table.table_writer import write_table
 from planner.errors import LutgenError
@@ -149,6 +151,44 @@ def test_of_several_tables_holding_a_point_the_cheapest_plan_is_taken(tmp_path):
         cheaper_in_b = phase == 15.0 and rate != 4.0  # b's 4 °/s, 15° plan is infeasible: a's is taken
         expected = other[(rate, phase)] if cheaper_in_b else OFFSETS[(rate, phase)]
         np.testing.assert_array_equal(merged.field("base_offset_m")[p], expected, err_msg=f"point {p}")
+    from_b = tuple(p for p in range(grid.n_points) if _rate_phase(grid, p)[1] == 15.0 and _rate_phase(grid, p)[0] < 4)
+    assert merged.reused_from == (
+        ReusedSource("a.h5", Table.open(tmp_path / "a.h5").attrs["created_utc"],
+                     tuple(p for p in range(grid.n_points) if p not in from_b)),
+        ReusedSource("b.h5", Table.open(tmp_path / "b.h5").attrs["created_utc"], from_b))
+
+
+def test_inspect_names_the_reused_table_relative_to_the_new_one_and_what_was_taken(tmp_path):
+    coarse_grid, fine_grid = _grid_file(tmp_path, "coarse", 3), _grid_file(tmp_path, "fine", 5)
+    (tmp_path / "old").mkdir()
+    _write_coarse(tmp_path / "old/coarse.h5", coarse_grid, infeasible=(3.5, 15.0))
+    (tmp_path / "new").mkdir()
+    out = tmp_path / "new/fine.h5"
+    run_build(fine_grid, out, BuildOptions(jobs=1, solver=FAKE, progress=False,
+                                           reuse=(str(tmp_path / "old/coarse.h5"),)))
+    _, _, grid = prepare(fine_grid)
+    taken = tuple(p for p in range(grid.n_points) if _rate_phase(grid, p)[0] in (3.0, 3.5, 4.0)
+                  and _rate_phase(grid, p) != (3.5, 15.0))
+    built = Table.open(tmp_path / "old/coarse.h5").attrs["created_utc"]
+    assert Table.open(out).reused_from == (ReusedSource("../old/coarse.h5", built, taken),)
+    result = lutgen_in_process("inspect", out)
+    assert result.returncode == 0, result.stderr
+    assert f"reused     8 points from ../old/coarse.h5 (built {built})" in result.stdout
+    info = json.loads(lutgen_in_process("inspect", out, "--json").stdout)
+    assert info["reused_from"] == [{"table": "../old/coarse.h5", "created_utc": built, "points": list(taken)}]
+    plain = json.loads(lutgen_in_process("inspect", tmp_path / "old/coarse.h5", "--json").stdout)
+    assert plain["reused_from"] == [] and Table.open(tmp_path / "old/coarse.h5").reused_from == ()
+
+
+def test_a_reused_table_removed_during_the_build_loses_nothing(tmp_path):
+    coarse_grid, fine_grid = _grid_file(tmp_path, "coarse", 3), _grid_file(tmp_path, "fine", 5)
+    _write_coarse(tmp_path / "coarse.h5", coarse_grid)
+    built = Table.open(tmp_path / "coarse.h5").attrs["created_utc"]
+    summary = run_build(fine_grid, tmp_path / "fine.h5",
+                        BuildOptions(jobs=1, solver=FAKE, progress=False, reuse=(str(tmp_path / "coarse.h5"),)),
+                        lambda _: (tmp_path / "coarse.h5").unlink(missing_ok=True))
+    assert summary.counts["feasible"] == 15 and not (tmp_path / "coarse.h5").exists()
+    assert Table.open(tmp_path / "fine.h5").reused_from[0].created_utc == built
 
 
 def test_an_interrupted_reusing_build_resumes_to_the_same_table(tmp_path):
@@ -168,6 +208,7 @@ def test_an_interrupted_reusing_build_resumes_to_the_same_table(tmp_path):
     summary = run_build(fine_grid, out, BuildOptions(jobs=1, solver=FAKE, progress=False, reuse=reuse, resume=True))
     assert (summary.reused_now, summary.solved_now) == (0, 5)  # the reused points and the first solved were journaled
     assert_same(snapshot(reference), snapshot(out))
+    assert Table.open(out).reused_from == Table.open(reference).reused_from
 
 
 def test_a_table_of_another_scenario_or_without_shared_points_is_refused_before_any_file(tmp_path):
