@@ -22,6 +22,9 @@ CONSISTENT_DELAY_S = 3.0  # corners whose carried start delays differ more are n
 # the cost's units is Eq. 16 for a base offset of 1 cm (below what relative navigation resolves), 5 % is issue 21's bar
 SAME_COST_ABS = 1e-4
 SAME_COST_REL = 0.05
+# the corner stage's bands of cost, each this factor above the one before from the cell's lowest cost: a corner left in
+# a far costlier minimum is tried after the nearer-optimal ones, however heavy (README "Optimal tables")
+COST_BAND_RATIO = 1.25
 
 
 @dataclass(frozen=True)
@@ -64,3 +67,18 @@ def mean_of_group(group: Sequence[Candidate], period_s: float) -> PlanParameters
     w = np.array([c.weight for c in group])
     w = w / w.sum()
     return PlanParameters.weighted_mean([c.parameters for c in group], w, period_s)
+
+
+def cost_bands(candidates: Sequence[Candidate]) -> list[int]:
+    """Each candidate's band of cost: 0 for those :func:`cheapest` keeps, else 1 + the whole number of factors
+    :data:`COST_BAND_RATIO` in 1 + its excess over the lowest cost relative to the lowest's size (at least
+    ``SAME_COST_ABS / SAME_COST_REL``, so that costs near zero share a band; for a positive lowest cost the ratio of the
+    two costs); all 0 when a cost is unknown (NaN)."""
+    costs = np.array([c.cost for c in candidates], dtype=float)
+    if costs.size == 0 or not np.isfinite(costs).all():
+        return [0] * len(candidates)
+    cheap = {c.corner for c in cheapest(candidates)}
+    best = float(costs.min())
+    ratios = 1.0 + (costs - best) / max(abs(best), SAME_COST_ABS / SAME_COST_REL)
+    return [0 if c.corner in cheap else 1 + int(np.floor(np.log(r) / np.log(COST_BAND_RATIO)))
+            for c, r in zip(candidates, ratios, strict=True)]

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
+from lut.query.interpolation import Candidate, cheapest, consistent_group, cost_bands, mean_of_group
 from lut.query.least_violating import violates_less, violation
 from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.stabilization_repair import repaired_plan, single_cause, stabilization_only
@@ -64,7 +64,7 @@ MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: n
 # and at most this [s]: a warm refine that fails holds the cold solve back for its whole share, while those that
 # succeed need far less (README "Envelope tables")
 WARM_REFINE_CAP_S = 30.0
-# corners whose own plans are tried (the cheapest, then the heaviest first) when the interpolated plan fails
+# corners whose own plans are tried (by band of cost, each band heaviest first) when the interpolated plan fails
 # verification, before any solve: each costs one re-simulation and verification and perhaps a repair (1-4 s), a refine
 # tens of seconds; a flat-spin cell has 8 corners (README "Optimal tables")
 CORNER_TRIES = 8
@@ -282,10 +282,11 @@ class TableQuery:
 
     @staticmethod
     def corner_order(corners: list[Candidate]) -> list[Candidate]:
-        """The corners the corner stage tries, in order: those at the cell's lowest cost first, each group heaviest
+        """The corners the corner stage tries, in order: by band of cost (:func:`cost_bands`: those at the cell's
+        lowest cost, then bands a factor :data:`~lut.query.interpolation.COST_BAND_RATIO` apart), each band heaviest
         first, at most :data:`CORNER_TRIES`."""
-        cheap = {c.corner for c in cheapest(corners)}
-        return sorted(corners, key=lambda c: (c.corner not in cheap, -c.weight))[:CORNER_TRIES]
+        bands = dict(zip((c.corner for c in corners), cost_bands(corners), strict=True))
+        return sorted(corners, key=lambda c: (bands[c.corner], -c.weight))[:CORNER_TRIES]
 
     def _repair_now_or_later(self, made: Attempt, deadline: Deadline, latency: dict[str, float],
                              later: list[Attempt]) -> Attempt | None:
