@@ -24,6 +24,7 @@ SCEN_I = ROOT / "configs" / "scenarios" / "scenario_I.toml"
 SCEN_II = ROOT / "configs" / "scenarios" / "scenario_II.toml"
 BUNDLED = {"ci": 4, "ci_optimal": 4, "demo": 9, "flat_spin": 1092, "flat_spin_I_energy": 18, "flat_spin_II_energy": 18,
            "flat_spin_II_energy_fine": 30, "flat_spin_II_energy_finer": 54, "flat_spin_II_energy_axes": 81,
+           "flat_spin_II_energy_rates": 153,
            "tumble": 1125, "envelope_flat_spin_I": 336, "envelope_flat_spin_II": 336,
            "envelope_flat_spin_II_coarse": 48, "envelope_tumble_I": 6000, "envelope_tumble_II": 6000}
 # a three-axis flat-spin grid (3 rates × 2 spin-axis angles × 4 phases) owned by the tests
