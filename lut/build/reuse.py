@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -36,12 +36,12 @@ CostOf = Callable[[PointResult], float]
 @dataclass(frozen=True)
 class ReusedPlans:
     """The plans ``--reuse`` takes: ``results`` (this grid's point → result) and ``sources`` (point → the index of
-    the table it came from in ``tables``, the paths as given, built at ``built_utc``)."""
+    the table it came from in ``tables``, the paths as given, built at ``built_utc``); empty without ``--reuse``."""
 
-    tables: tuple[str, ...]
-    built_utc: tuple[str, ...]
-    results: dict[int, PointResult]
-    sources: dict[int, int]
+    tables: tuple[str, ...] = ()
+    built_utc: tuple[str, ...] = ()
+    results: dict[int, PointResult] = field(default_factory=dict)
+    sources: dict[int, int] = field(default_factory=dict)
 
     def provenance(self, table_dir: Path) -> str:
         """The table attribute ``reused_from`` (:mod:`lut.table.provenance`): per reused table, in the order given,

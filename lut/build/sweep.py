@@ -96,8 +96,7 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
     mhash = table_hash(scenario)
     cost_of = weighted_cost(scenario) if options.reuse else None
-    reused = (cheapest_reused(options.reuse, grid, config.kind, mhash, cost_of) if cost_of
-              else ReusedPlans((), (), {}, {}))
+    reused = cheapest_reused(options.reuse, grid, config.kind, mhash, cost_of) if cost_of else ReusedPlans()
     complete = existing_work(table_path, jpath, options, mhash, config)
     if complete is not None:
         return complete_summary(complete, t_start)

@@ -144,8 +144,7 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
         "axes": {name: [float(x) for x in values] for name, values in zip(table.axis_names, table.axis_values,
                                                                             strict=True)},
         "counts": table.counts(), "n_points": table.n_points,
-        "reused_from": [{"table": s.table, "created_utc": s.created_utc, "points": list(s.points)}
-                        for s in table.reused_from],
+        "reused_from": [source.as_json() for source in table.reused_from],
         "solve_time_s": stats(table.field("solve_time_s")),
         "costs": {key: stats(table.field(f"costs/{key}")) for key in
                   ("min_distance_m", "approach_energy_m2", "peak_grasp_torque_nm")

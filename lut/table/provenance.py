@@ -19,10 +19,14 @@ class ReusedSource:
     created_utc: str
     points: tuple[int, ...]
 
+    def as_json(self) -> dict[str, str | list[int]]:
+        """The source as the attribute's JSON holds it (and ``lutgen inspect --json`` prints it)."""
+        return {"table": self.table, "created_utc": self.created_utc, "points": list(self.points)}
+
 
 def provenance_text(sources: Sequence[ReusedSource]) -> str:
-    """The attribute's text: a JSON list of ``{"table", "created_utc", "points"}``, in the order given."""
-    return json.dumps([{"table": s.table, "created_utc": s.created_utc, "points": list(s.points)} for s in sources])
+    """The attribute's text: a JSON list of :meth:`ReusedSource.as_json`, in the order given."""
+    return json.dumps([s.as_json() for s in sources])
 
 
 def reused_sources(path: Path, text: str | None, n_points: int) -> tuple[ReusedSource, ...]:
@@ -32,7 +36,7 @@ def reused_sources(path: Path, text: str | None, n_points: int) -> tuple[ReusedS
         return ()
     try:
         items = json.loads(text)
-        sources = tuple(ReusedSource(str(_text(d["table"])), str(_text(d["created_utc"])),
+        sources = tuple(ReusedSource(_text(d["table"]), _text(d["created_utc"]),
                                      tuple(_index(p, n_points) for p in d["points"])) for d in items)
     except (ValueError, TypeError, KeyError) as exc:
         raise TableError(f"{path}: root attribute reused_from is not a list of reused tables ({exc})") from None

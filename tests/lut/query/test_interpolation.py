@@ -65,6 +65,12 @@ def test_costs_near_zero_share_a_band_and_unknown_costs_band_nothing():
     assert cost_bands([]) == []
 
 
+def test_one_corner_or_equal_costs_are_one_band():
+    assert _bands(0.8) == [0]
+    assert _bands(0.8, 0.8, 0.8) == [0, 0, 0]
+    assert _bands(-0.8, -0.8) == [0, 0]
+
+
 def test_the_corner_stage_tries_a_lighter_corner_of_a_cheaper_band_before_a_heavy_costly_one():
     # seed 7 state 13 of the optimal bench on flat_spin_II_energy_rates (README "Optimal tables"): the 1.75 m² corner
     # was the heaviest after the cheapest group and was answered; now the 0.93 m² one (1.55 times the lowest) before it
