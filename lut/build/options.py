@@ -31,6 +31,8 @@ class BuildOptions:
     robust_samples: int = 20  # drawn states per feasible point with --robust
     cold: bool = False  # --cold: every point planned cold, none warm-started from a neighbour
     reuse: tuple[str, ...] = ()  # --reuse: tables whose feasible plans at this grid's points are taken (the cheapest)
+    polish: bool = False  # --polish: points dearer than a neighbour solved again warm from it (lut.build.polish)
+    polish_tries: int = 2  # --polish-tries: the cheaper neighbours tried per point, cheapest first
 
     def solver_kwargs(self) -> dict[str, float]:
         """The point solver's robustness arguments (none without ``--robust``)."""
@@ -57,6 +59,7 @@ class BuildSummary:
     failures: list[str] = field(default_factory=list)  # "point N: reason"
     outcome: BuildOutcome = BuildOutcome.BUILT
     reused_now: int = 0  # points taken from --reuse's table in this run
+    polished_now: int = 0  # points --polish gave a cheaper feasible plan in this run
 
 
 def check_options(options: BuildOptions) -> None:
@@ -65,6 +68,8 @@ def check_options(options: BuildOptions) -> None:
         raise LutgenError("--resume and --force exclude each other: continue the journal, or start over")
     if not (np.isfinite(options.point_timeout_s) and 0 < options.point_timeout_s <= MAX_POINT_TIMEOUT_S):
         raise LutgenError(f"--point-timeout: must be in (0, {MAX_POINT_TIMEOUT_S:g}] s, got {options.point_timeout_s}")
+    if options.polish_tries < 1:
+        raise LutgenError(f"--polish-tries: must be >= 1, got {options.polish_tries}")
     if options.jobs < 1:
         raise LutgenError(f"-j/--jobs: must be >= 1, got {options.jobs}")
     if options.robust_sigmas is not None and not (all(np.isfinite(v) and v >= 0 for v in options.robust_sigmas)

@@ -10,13 +10,13 @@ from lut.table.point_result import PointResult, PointStatus
 class Progress:
     """tqdm's bar over the grid's points (nothing at all when disabled: logs, CI)."""
 
-    def __init__(self, total: int, initial: int, enabled: bool) -> None:
+    def __init__(self, total: int, initial: int, enabled: bool, desc: str = "build") -> None:
         self.failed = 0
         self.bar = None
         if enabled:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, initial=initial, unit="point", desc="build", dynamic_ncols=True,
+            self.bar = tqdm(total=total, initial=initial, unit="point", desc=desc, dynamic_ncols=True,
                             file=sys.stderr)
 
     def update(self, result: PointResult) -> None:

@@ -23,7 +23,7 @@ import numpy as np
 from lut.table.grid import Grid
 from lut.table.point_result import PointResult, PointStatus
 from lut.table.provenance import ReusedSource, provenance_text
-from lut.table.records import from_record
+from lut.table.records import from_record, parameter_fields
 from lut.table.schema import TableError
 from lut.table.store import Table
 from planner.config.scenario import Scenario
@@ -43,12 +43,26 @@ class ReusedPlans:
     results: dict[int, PointResult] = field(default_factory=dict)
     sources: dict[int, int] = field(default_factory=dict)
 
+    def kept_in(self, done: dict[int, PointResult]) -> ReusedPlans:
+        """These plans less those the build replaced (``--polish`` found a cheaper one): what the table keeps."""
+        kept = {p for p, r in self.results.items() if p in done and same_plan(done[p], r)}
+        return replace(self, results={p: r for p, r in self.results.items() if p in kept},
+                       sources={p: k for p, k in self.sources.items() if p in kept})
+
     def provenance(self, table_dir: Path) -> str:
         """The table attribute ``reused_from`` (:mod:`lut.table.provenance`): per reused table, in the order given,
         its path relative to ``table_dir`` (the new table's folder), when it was built and the points taken from it."""
         return provenance_text([ReusedSource(os.path.relpath(Path(path).absolute(), table_dir.absolute()),
                                              built, tuple(sorted(p for p, i in self.sources.items() if i == k)))
                                 for k, (path, built) in enumerate(zip(self.tables, self.built_utc, strict=True))])
+
+
+def same_plan(a: PointResult, b: PointResult) -> bool:
+    """Whether two results hold the same plan parameters, bit for bit (or neither holds any)."""
+    if a.parameters is None or b.parameters is None:
+        return a.parameters is None and b.parameters is None
+    fa, fb = parameter_fields(a.parameters), parameter_fields(b.parameters)
+    return fa.keys() == fb.keys() and all(np.array_equal(fa[k], fb[k]) for k in fa)
 
 
 def cheapest_reused(table_paths: Sequence[str | Path], grid: Grid, grid_kind: str, model_hash: str,

@@ -16,6 +16,9 @@
   (:mod:`lut.build.reuse`).
 * **Cold (``--cold``).** Every point not reused is planned cold, from no neighbour: one layer, all in parallel; a
   further start whose table merges with others by ``--reuse``.
+* **Polish (``--polish``).** Once every point is solved, a point dearer than an adjacent one by a factor (or without
+  a feasible plan) is solved again warm from its cheaper neighbours and keeps a cheaper feasible plan
+  (:mod:`lut.build.polish`).
 * **Determinism.** Same config (and reused tables) ⇒ same warm-start tree ⇒ same table (up to points that hit
   the time limit, which depends on the machine).
 """
@@ -32,6 +35,7 @@ from typing import TYPE_CHECKING
 from lut.build.backends import parallel_backend
 from lut.build.existing_work import complete_summary, existing_work, journal_path
 from lut.build.options import BuildOptions, BuildSummary, check_options
+from lut.build.polish import PolishTask, polish, polish_tasks
 from lut.build.progress import Progress
 from lut.build.reuse import Continuation, CostOf, ReusedPlans, cheapest_reused, reuse_continuation, weighted_cost
 from lut.output.paths import Output, check_outputs
@@ -95,14 +99,15 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     inputs = [grid_path, config.scenario_path, *scenario.input_files, *options.reuse]
     check_outputs(inputs, [Output("--out", table_path), Output("--out (its journal)", jpath)], tables_allowed=True)
     mhash = table_hash(scenario)
-    cost_of = weighted_cost(scenario) if options.reuse else None
+    cost_of = weighted_cost(scenario) if options.reuse or options.polish else None
     reused = cheapest_reused(options.reuse, grid, config.kind, mhash, cost_of) if cost_of else ReusedPlans()
     complete = existing_work(table_path, jpath, options, mhash, config)
     if complete is not None:
         return complete_summary(complete, t_start)
-    order = _build_order(grid, reused.results, cost_of, options.cold)
-    done, solved_now, reused_now = _journaled_sweep(grid, config, options, jpath, mhash,
-                                                   Sweep(order, reused.results, on_result))
+    order = _build_order(grid, reused.results, cost_of if options.reuse else None, options.cold)
+    done, solved_now, reused_now, polished_now = _journaled_sweep(grid, config, options, jpath, mhash,
+                                                                 Sweep(order, reused.results, on_result, cost_of))
+    reused = reused.kept_in(done)
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
                 grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
                 records={p: to_record(r) for p, r in done.items()}, n_points=grid.n_points,
@@ -115,26 +120,31 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
         jpath.unlink(missing_ok=True)
     failures = [f"point {p}: {r.failure_reason}" for p, r in sorted(done.items()) if r.status is PointStatus.FAILED]
     return BuildSummary(table_path, grid.n_points, counts, solved_now, time.perf_counter() - t_start, failures,
-                        reused_now=reused_now)
+                        reused_now=reused_now, polished_now=polished_now)
 
 
 @dataclass(frozen=True)
 class Sweep:
     """What a build solves: every point in ``order`` (with its warm-start parent), less the ``reused`` results
-    taken as they are; ``on_result`` sees every point solved."""
+    taken as they are; ``on_result`` sees every point solved (and polished); ``cost_of`` scores a plan (``--reuse``,
+    ``--polish``)."""
 
     order: Continuation
     reused: dict[int, PointResult]
     on_result: OnResult | None = None
+    cost_of: CostOf | None = None
 
 
 def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpath: Path, mhash: str,
-                     sweep: Sweep) -> tuple[dict[int, PointResult], int, int]:
-    """Open (or continue) the journal and solve what it lacks; a sweep that solved nothing leaves no journal.
-    The results of all points, how many were solved now and how many reused now."""
+                     sweep: Sweep) -> tuple[dict[int, PointResult], int, int, int]:
+    """Open (or continue) the journal and solve what it lacks, then polish (``--polish``); a sweep that solved
+    nothing leaves no journal. The results of all points, how many were solved, reused and polished now."""
     parallel, client = parallel_backend(options)
+    header = {"model_hash": mhash, "grid_text": config.text}
+    if options.polish:  # a polished point's second record must not be resumed into an unpolished build
+        header["polish"] = str(options.polish_tries)
     try:
-        journal = Journal(jpath, {"model_hash": mhash, "grid_text": config.text})
+        journal = Journal(jpath, header)
     except BaseException:
         if client is not None:
             client.close()
@@ -142,7 +152,9 @@ def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpat
     try:
         done = {p: from_record(rec) for p, rec in journal.records().items()}
         reused_now = _journal_reused(journal, sweep.reused, done)
-        return (*_solve_layers(grid, config, options, journal, parallel, sweep, done), reused_now)
+        done, solved_now = _solve_layers(grid, config, options, journal, parallel, sweep, done)
+        polished_now = _polish(grid, config, options, journal, parallel, sweep) if options.polish else 0
+        return {p: from_record(rec) for p, rec in journal.records().items()}, solved_now, reused_now, polished_now
     except BaseException:
         if journal.started and not journal.records():
             journal.discard()  # nothing was solved: leave no journal that would ask for --resume
@@ -186,25 +198,54 @@ def _solve_layers(grid: Grid, config: GridConfig, options: BuildOptions, journal
 def _solve_layer(grid: Grid, config: GridConfig, options: BuildOptions, layer: Continuation,
                  done: dict[int, PointResult], parallel: Parallel) -> Iterable[PointResult]:
     """The results of ``layer``'s points not ``done`` yet, as they finish; each warm-started from its parent's
-    plan when that is feasible."""
+    plan when that is feasible, and planned cold after a warm plan verify refuses."""
+    tasks = [_point_task(grid, config, options, point, parent, done.get(parent) if parent is not None else None,
+                         cold_fallback=True)
+             for point, parent in layer if point not in done]
+    return parallel(tasks) if tasks else ()
+
+
+def _point_task(grid: Grid, config: GridConfig, options: BuildOptions, point: int, parent: int | None,
+                warm: PointResult | None, cold_fallback: bool) -> object:
+    """The joblib task solving ``point`` warm from ``parent``'s result ``warm`` when it is feasible (else cold)."""
     import joblib
 
-    tasks = []
-    for point, parent in layer:
-        if point in done:
-            continue
-        warm = done.get(parent) if parent is not None else None
-        if warm is not None and warm.status is not PointStatus.FEASIBLE:
-            warm = None
-        shift = 0.0
-        if warm is not None and config.kind == "flat_spin":
-            # the child reaches the parent's configuration Δφ/rate earlier
-            shift = grid.start_delay_shift_s(grid.coordinates(parent), grid.coordinates(point), forward_turn=True)
-        # a point's plan ends before its timeout (its best plan kept, not killed), a warm start that leads nowhere
-        # here is followed by a cold plan, and a worker's points share one solver process (its planner built once)
-        tasks.append(joblib.delayed(run_point)(options.solver, str(config.scenario_path), point, grid.state(point),
-                                               None if warm is None else warm.parameters, shift,
-                                               options.point_timeout_s, plan_budget_s=options.point_timeout_s,
-                                               cold_fallback=True, solver_kwargs=options.solver_kwargs(),
-                                               keep_process=True))
-    return parallel(tasks) if tasks else ()
+    if warm is not None and warm.status is not PointStatus.FEASIBLE:
+        warm = None
+    shift = 0.0
+    if warm is not None and config.kind == "flat_spin":
+        # the child reaches the parent's configuration Δφ/rate earlier
+        shift = grid.start_delay_shift_s(grid.coordinates(parent), grid.coordinates(point), forward_turn=True)
+    # a point's plan ends before its timeout (its best plan kept, not killed), and a worker's points share one solver
+    # process (its planner built once)
+    return joblib.delayed(run_point)(options.solver, str(config.scenario_path), point, grid.state(point),
+                                     None if warm is None else warm.parameters, shift, options.point_timeout_s,
+                                     plan_budget_s=options.point_timeout_s, cold_fallback=cold_fallback,
+                                     solver_kwargs=options.solver_kwargs(), keep_process=True)
+
+
+def _polish(grid: Grid, config: GridConfig, options: BuildOptions, journal: Journal, parallel: Parallel,
+            sweep: Sweep) -> int:
+    """``--polish`` (:mod:`lut.build.polish`): the candidates read from the sweep's results (each point's first
+    record), less those a resumed build already polished; how many points got a cheaper plan."""
+    assert sweep.cost_of is not None, "a polishing build scores its plans"
+    swept = {p: from_record(rec) for p, rec in journal.first_records().items()}
+    polished = journal.journaled_again()
+    tasks: list[PolishTask] = [t for t in polish_tasks(grid, swept, sweep.cost_of, options.polish_tries)
+                               if t.point not in polished]
+    bar = Progress(len(tasks), 0, options.progress, desc="polish")
+
+    def solve_from(pairs: list[tuple[int, int]]) -> Iterable[PointResult]:
+        jobs = [_point_task(grid, config, options, p, nb, swept[nb], cold_fallback=False) for p, nb in pairs]
+        return parallel(jobs) if jobs else ()
+
+    def keep(result: PointResult) -> None:
+        journal.append(to_record(result))
+        bar.update(result)
+        if sweep.on_result is not None:
+            sweep.on_result(result)
+
+    try:
+        return polish(tasks, swept, sweep.cost_of, solve_from, keep)
+    finally:
+        bar.close()

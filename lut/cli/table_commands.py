@@ -48,10 +48,17 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
               help="A table built for the same scenario (repeatable): its feasible plans at the points this grid "
                    "shares with it are taken as they are (the cheapest where several tables hold a point), and every "
                    "other point starts from the cheapest adjacent one (a finer grid grown from a coarser table).")
+@click.option("--polish", is_flag=True,
+              help="Once every point is solved, solve again each point whose plan costs over 1.25x an adjacent "
+                   "point's (or has no feasible plan) warm from its cheapest such neighbours (--polish-tries), each "
+                   "try up to --point-timeout; a cheaper feasible plan replaces it.")
+@click.option("--polish-tries", type=int, default=2, show_default=True,
+              help="With --polish: the cheaper neighbours tried per point, cheapest first, until one gives a cheaper "
+                   "feasible plan.")
 @user_errors
 def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str | None, point_timeout_s: float,
           resume: bool, force: bool, no_progress: bool, robust_sigmas: str | None, robust_samples: int,
-          cold: bool, reuse_paths: tuple[str, ...]) -> None:
+          cold: bool, reuse_paths: tuple[str, ...], polish: bool, polish_tries: int) -> None:
     """Solve every point of GRID_PATH and store the verified plans in an HDF5 look-up table.
 
     Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
@@ -66,7 +73,8 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
         sigmas = (att_deg, rate_deg_s)
     options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
                            resume=resume, force=force, progress=not no_progress,
-                           robust_sigmas=sigmas, robust_samples=robust_samples, cold=cold, reuse=reuse_paths)
+                           robust_sigmas=sigmas, robust_samples=robust_samples, cold=cold, reuse=reuse_paths,
+                           polish=polish, polish_tries=polish_tries)
     summary = run_build(grid_path, out_path, options)
     c = summary.counts
     if summary.outcome is BuildOutcome.ALREADY_COMPLETE:
@@ -76,7 +84,8 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
     click.echo(f"built {summary.table}: {summary.n_points} points — {c['feasible']} feasible, "
                f"{c['infeasible']} infeasible, {c['failed']} failed, {c['pending']} pending; "
                f"{summary.solved_now} solved in {summary.wall_time_s:.0f} s"
-               + (f", {summary.reused_now} reused from {', '.join(reuse_paths)}" if summary.reused_now else ""))
+               + (f", {summary.reused_now} reused from {', '.join(reuse_paths)}" if summary.reused_now else "")
+               + (f", {summary.polished_now} given a cheaper plan by --polish" if polish else ""))
     for line in summary.failures[:10]:
         click.echo(f"  failed {line}")
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lut.table.plan_costs import cost_ratio
 from planner.plan_parameters import PlanParameters, circular_gap
 
 CONSISTENT_DELAY_S = 3.0  # corners whose carried start delays differ more are not averaged [s]
@@ -79,6 +80,6 @@ def cost_bands(candidates: Sequence[Candidate]) -> list[int]:
         return [0] * len(candidates)
     cheap = {c.corner for c in cheapest(candidates)}
     best = float(costs.min())
-    ratios = 1.0 + (costs - best) / max(abs(best), SAME_COST_ABS / SAME_COST_REL)
+    ratios = cost_ratio(costs, best, SAME_COST_ABS / SAME_COST_REL)
     return [0 if c.corner in cheap else 1 + int(np.floor(np.log(r) / np.log(COST_BAND_RATIO)))
             for c, r in zip(candidates, ratios, strict=True)]

@@ -68,7 +68,8 @@ class Journal:
 
     ``header`` identifies what the journal belongs to (config hash etc.); opening an existing journal
     with a different header raises :class:`~lut.table.schema.TableError`. A record must hold an int
-    ``"point"`` and a str ``"status"``; :meth:`records` returns the last record of every point.
+    ``"point"`` and a str ``"status"``; :meth:`records` returns the last record of every point,
+    :meth:`first_records` the first (a point journaled again, e.g. polished, keeps both).
     ``ignored_bytes`` says how much of a torn tail was cut away on open; ``started`` is True when this
     open wrote the header (a new journal), False when it continues an existing one.
     """
@@ -79,6 +80,7 @@ class Journal:
         self.ignored_bytes = 0
         self.started = False
         self._records: dict[int, dict[str, Any]] = {}
+        self._first: dict[int, dict[str, Any]] = {}
         self._fd: int | None = None
         fd = self._open_locked()
         try:
@@ -137,8 +139,7 @@ class Journal:
                 f"journal {self.path} was written for a different config (hash {_header_digest(stored)}, this build "
                 f"{_header_digest(self.header)}; differs in {', '.join(differ)}): delete it to start over")
         for payload in payloads[1:]:
-            rec = decode_record(payload)
-            self._records[int(rec["point"])] = rec
+            self._keep(decode_record(payload))
         if end < size:  # a torn or corrupt tail: cut it away before anything is appended after it
             self.ignored_bytes = size - end
             os.ftruncate(fd, end)
@@ -166,11 +167,24 @@ class Journal:
             with contextlib.suppress(OSError):  # leave no partial frame behind (e.g. disk full)
                 os.ftruncate(self._fd, end)
             raise
-        self._records[int(point)] = decode_record(payload)
+        self._keep(decode_record(payload))
+
+    def _keep(self, record: dict[str, Any]) -> None:
+        point = int(record["point"])
+        self._first.setdefault(point, record)
+        self._records[point] = record
 
     def records(self) -> dict[int, dict[str, Any]]:
         """The last record of every point journaled so far (a fresh dict; records are decoded copies)."""
         return dict(self._records)
+
+    def first_records(self) -> dict[int, dict[str, Any]]:
+        """The first record of every point journaled so far (a fresh dict)."""
+        return dict(self._first)
+
+    def journaled_again(self) -> set[int]:
+        """The points journaled more than once."""
+        return {p for p, rec in self._records.items() if rec is not self._first[p]}
 
     def discard(self) -> None:
         """Close and delete the journal (a build that stopped before its first record leaves nothing behind)."""

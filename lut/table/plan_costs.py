@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from lut.table.point_result import PointResult
 from planner.config.scenario import Scenario
@@ -104,3 +105,10 @@ class CostScorer:
                   "min_distance": lambda: float(min_distance_m)}
         return CostBreakdown(label, tuple(CostTerm(name, unit, values[name](), weight, sign)
                                           for name, unit, sign, weight in self.weighted_terms))
+
+
+def cost_ratio(cost: ArrayLike, lowest: float, floor: float) -> NDArray[np.float64]:
+    """1 + the excess of ``cost`` over ``lowest`` relative to the lowest's size, at least ``floor`` (costs near zero are
+    alike): the ratio of the two costs for a positive lowest cost above the floor; for a negative one (Eq. 14-15 are
+    maximised) the excess in units of its size."""
+    return 1.0 + (np.asarray(cost, dtype=float) - lowest) / max(abs(lowest), floor)

@@ -13,7 +13,8 @@ from lut.table.store import Table
 
 ROOT = Path(__file__).resolve().parents[2]
 FAKE_SOLVER = "tests.support.fake_solver:solve"
-FAULT_VARIABLES = ("LUTGEN_FAKE_RAISE", "LUTGEN_FAKE_HANG", "LUTGEN_FAKE_CRASH", "LUTGEN_FAKE_SLEEP_S")
+FAULT_VARIABLES = ("LUTGEN_FAKE_RAISE", "LUTGEN_FAKE_HANG", "LUTGEN_FAKE_CRASH", "LUTGEN_FAKE_SLEEP_S",
+                   "LUTGEN_FAKE_INFEASIBLE")
 # Per-point fields that hold wall-clock measurements: they differ between two runs of the same build by
 # design, so only whether each point has a value (and that it is a duration, >= 0) must agree.
 WALL_CLOCK_FIELDS = frozenset({"solve_time_s"})

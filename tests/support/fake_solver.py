@@ -4,6 +4,8 @@ Its record is a fixed function of the target state and of the warm start (so con
 matters, as with the real planner). Fault injection through environment variables, read only here:
 ``LUTGEN_FAKE_RAISE=<point>`` raises, ``LUTGEN_FAKE_HANG=<point>`` sleeps far past any timeout,
 ``LUTGEN_FAKE_CRASH=<point>`` kills its own process, ``LUTGEN_FAKE_SLEEP_S`` slows every point.
+:func:`solve_in_warm_minimum` stays in its warm start's minimum (its base offset, so its cost), and
+``LUTGEN_FAKE_INFEASIBLE=<point>`` makes its warm plans there infeasible.
 """
 
 from __future__ import annotations
@@ -52,3 +54,17 @@ def solve(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64], om
         "free_axis_angle_rad": 0.0, "costs/min_distance_m": 0.1, "costs/approach_energy_m2": 0.0,
         "costs/peak_grasp_torque_nm": 1.0, "margins/collision": 0.05,
     }
+
+
+def solve_in_warm_minimum(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
+                          omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
+                          max_wall_s: float | None = None, deadline_at_s: float | None = None,
+                          cold_fallback: bool = False) -> Record:
+    """:func:`solve`, but a warm-started plan keeps its warm start's base offset (it lands in the neighbour's
+    minimum, so at its Eq. 16 cost), and is infeasible at the point ``LUTGEN_FAKE_INFEASIBLE`` names."""
+    rec = solve(scenario_path, point, attitude_wxyz, omega_body_rad_s, warm, warm_shift_s)
+    if warm is not None:
+        rec["base_offset_m"] = np.asarray(warm.approach.base_offset_m, dtype=float).copy()
+        if os.environ.get("LUTGEN_FAKE_INFEASIBLE") == str(point):
+            rec["status"], rec["failure_reason"] = "infeasible", "stand-in: collision link 2 - panel"
+    return rec
