@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lut.build.polish import PolishOutcome
 from lut.solve.point_process import DEFAULT_SOLVER
 from planner.errors import LutgenError
 
@@ -59,7 +60,7 @@ class BuildSummary:
     failures: list[str] = field(default_factory=list)  # "point N: reason"
     outcome: BuildOutcome = BuildOutcome.BUILT
     reused_now: int = 0  # points taken from --reuse's table in this run
-    polished_now: int = 0  # points --polish gave a cheaper feasible plan in this run
+    polish: PolishOutcome = field(default_factory=PolishOutcome)  # what --polish did in this run
 
 
 def check_options(options: BuildOptions) -> None:

@@ -16,15 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lut.build.reuse import CostOf, cost_or_inf
 from lut.table.grid import Grid
 from lut.table.plan_costs import cost_ratio
 from lut.table.point_result import PointResult, PointStatus
 
 POLISH_RATIO = 1.25  # a point this factor dearer than a neighbour is polished from it (the query's bands of cost)
 POLISH_COST_FLOOR = 2e-3  # costs below this are alike (the query's floor: Eq. 16 of a 4.5 cm base offset) [cost]
-
-CostOf = Callable[[PointResult], float]
-
 
 @dataclass(frozen=True)
 class PolishTask:
@@ -39,7 +37,7 @@ def polish_tasks(grid: Grid, results: dict[int, PointResult], cost_of: CostOf, t
     """The points of ``results`` with an adjacent feasible point whose cost ``cost_of`` is lower by more than
     ``ratio`` (:func:`cost_ratio`; a point without a feasible plan, or with a NaN cost, is dearer than any), each
     with up to ``tries`` such neighbours, cheapest first (a tie: the lower index), in point order."""
-    costs = {p: _cost(r, cost_of) for p, r in results.items()}
+    costs = {p: cost_or_inf(r, cost_of) for p, r in results.items()}
     tasks = []
     for point in sorted(results):
         cheaper = sorted((costs[nb], nb) for nb in grid.neighbours(point)
@@ -50,24 +48,24 @@ def polish_tasks(grid: Grid, results: dict[int, PointResult], cost_of: CostOf, t
     return tasks
 
 
-def _cost(result: PointResult, cost_of: CostOf) -> float:
-    """The result's cost, +inf without a feasible plan or with a cost that is not a number."""
-    if result.status is not PointStatus.FEASIBLE:
-        return float("inf")
-    value = cost_of(result)
-    return value if np.isfinite(value) else float("inf")
-
-
 def better(tried: PointResult, kept: PointResult, cost_of: CostOf) -> bool:
     """Whether ``tried`` replaces ``kept``: feasible, and cheaper (any feasible plan replaces one that is not)."""
-    return tried.status is PointStatus.FEASIBLE and _cost(tried, cost_of) < _cost(kept, cost_of)
+    return tried.status is PointStatus.FEASIBLE and cost_or_inf(tried, cost_of) < cost_or_inf(kept, cost_of)
+
+
+@dataclass(frozen=True)
+class PolishOutcome:
+    """What a polish did: how many points it tried, and how many of them got a cheaper plan."""
+
+    tried: int = 0
+    improved: int = 0
 
 
 SolveFrom = Callable[[list[tuple[int, int]]], Iterable[PointResult]]  # (point, neighbour) pairs → their tries
 
 
 def polish(tasks: list[PolishTask], results: dict[int, PointResult], cost_of: CostOf, solve_from: SolveFrom,
-           keep: Callable[[PointResult], None]) -> int:
+           keep: Callable[[PointResult], None]) -> PolishOutcome:
     """Try every task's neighbours in rounds (round k: each task not yet improved, from its k-th neighbour, all in
     parallel through ``solve_from``); ``keep`` gets each task's outcome once: its better plan as soon as a try
     finds it, else its plan of ``results`` after its last try. How many points got a better plan."""
@@ -83,4 +81,4 @@ def polish(tasks: list[PolishTask], results: dict[int, PointResult], cost_of: Co
         for point in [p for p, t in open_tasks.items() if len(t.neighbours) <= k + 1]:
             keep(results[point])
             del open_tasks[point]
-    return improved
+    return PolishOutcome(len(tasks), improved)

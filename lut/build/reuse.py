@@ -74,7 +74,7 @@ def cheapest_reused(table_paths: Sequence[str | Path], grid: Grid, grid_kind: st
     tables = [_opened(path) for path in table_paths]
     for k, table in enumerate(tables):
         for point, result in reused_points(table, grid, grid_kind, model_hash).items():
-            if point not in chosen or _cost(result, cost_of) < _cost(chosen[point], cost_of):
+            if point not in chosen or cost_or_inf(result, cost_of) < cost_or_inf(chosen[point], cost_of):
                 chosen[point] = result
                 sources[point] = k
     return ReusedPlans(tuple(str(p) for p in table_paths), tuple(str(t.attrs["created_utc"]) for t in tables),
@@ -128,15 +128,15 @@ def reuse_continuation(grid: Grid, reused: dict[int, PointResult], cost_of: Cost
         nxt = sorted({nb for p in layer for nb in grid.neighbours(p) if nb not in seen})
         for point in nxt:
             parents = [p for p in grid.neighbours(point) if p in in_layer]
-            order.append((point, min(parents, key=lambda p: (_cost(reused.get(p), cost_of), p))))
+            order.append((point, min(parents, key=lambda p: (cost_or_inf(reused.get(p), cost_of), p))))
         seen.update(nxt)
         layer = nxt
     return order
 
 
-def _cost(result: PointResult | None, cost_of: CostOf) -> float:
-    """The result's cost, +inf where there is none to compare (not reused, or NaN)."""
-    if result is None:
+def cost_or_inf(result: PointResult | None, cost_of: CostOf) -> float:
+    """The result's cost, +inf where there is none to compare (no result, no feasible plan, or a NaN cost)."""
+    if result is None or result.status is not PointStatus.FEASIBLE:
         return math.inf
     value = cost_of(result)
     return value if math.isfinite(value) else math.inf

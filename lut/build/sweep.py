@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 from lut.build.backends import parallel_backend
 from lut.build.existing_work import complete_summary, existing_work, journal_path
 from lut.build.options import BuildOptions, BuildSummary, check_options
-from lut.build.polish import PolishTask, polish, polish_tasks
+from lut.build.polish import PolishOutcome, PolishTask, polish, polish_tasks
 from lut.build.progress import Progress
 from lut.build.reuse import Continuation, CostOf, ReusedPlans, cheapest_reused, reuse_continuation, weighted_cost
 from lut.output.paths import Output, check_outputs
@@ -105,8 +105,7 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
     if complete is not None:
         return complete_summary(complete, t_start)
     order = _build_order(grid, reused.results, cost_of if options.reuse else None, options.cold)
-    done, solved_now, reused_now, polished_now = _journaled_sweep(grid, config, options, jpath, mhash,
-                                                                 Sweep(order, reused.results, on_result, cost_of))
+    done, did = _journaled_sweep(grid, config, options, jpath, mhash, Sweep(order, reused.results, on_result, cost_of))
     reused = reused.kept_in(done)
     write_table(table_path, grid_axes=list(zip(grid.axis_names, grid.axis_values, strict=True)),
                 grid_kind=config.kind, config_text=config.text, scenario_text=scenario.text, model_hash=mhash,
@@ -119,8 +118,8 @@ def run_build(grid_path: str | Path, table_path: str | Path, options: BuildOptio
         # the table now holds every point durably; a leftover journal would only block the next build
         jpath.unlink(missing_ok=True)
     failures = [f"point {p}: {r.failure_reason}" for p, r in sorted(done.items()) if r.status is PointStatus.FAILED]
-    return BuildSummary(table_path, grid.n_points, counts, solved_now, time.perf_counter() - t_start, failures,
-                        reused_now=reused_now, polished_now=polished_now)
+    return BuildSummary(table_path, grid.n_points, counts, did.solved, time.perf_counter() - t_start, failures,
+                        reused_now=did.reused, polish=did.polish)
 
 
 @dataclass(frozen=True)
@@ -135,10 +134,19 @@ class Sweep:
     cost_of: CostOf | None = None
 
 
+@dataclass(frozen=True)
+class SweepCounts:
+    """What one run of a build did: points solved, reused, and what ``--polish`` did."""
+
+    solved: int
+    reused: int
+    polish: PolishOutcome
+
+
 def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpath: Path, mhash: str,
-                     sweep: Sweep) -> tuple[dict[int, PointResult], int, int, int]:
+                     sweep: Sweep) -> tuple[dict[int, PointResult], SweepCounts]:
     """Open (or continue) the journal and solve what it lacks, then polish (``--polish``); a sweep that solved
-    nothing leaves no journal. The results of all points, how many were solved, reused and polished now."""
+    nothing leaves no journal. The results of all points, and what this run did."""
     parallel, client = parallel_backend(options)
     header = {"model_hash": mhash, "grid_text": config.text}
     if options.polish:  # a polished point's second record must not be resumed into an unpolished build
@@ -153,8 +161,9 @@ def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpat
         done = {p: from_record(rec) for p, rec in journal.records().items()}
         reused_now = _journal_reused(journal, sweep.reused, done)
         done, solved_now = _solve_layers(grid, config, options, journal, parallel, sweep, done)
-        polished_now = _polish(grid, config, options, journal, parallel, sweep) if options.polish else 0
-        return {p: from_record(rec) for p, rec in journal.records().items()}, solved_now, reused_now, polished_now
+        polished = _polish(grid, config, options, journal, parallel, sweep) if options.polish else PolishOutcome()
+        return ({p: from_record(rec) for p, rec in journal.records().items()},
+                SweepCounts(solved_now, reused_now, polished))
     except BaseException:
         if journal.started and not journal.records():
             journal.discard()  # nothing was solved: leave no journal that would ask for --resume
@@ -225,9 +234,9 @@ def _point_task(grid: Grid, config: GridConfig, options: BuildOptions, point: in
 
 
 def _polish(grid: Grid, config: GridConfig, options: BuildOptions, journal: Journal, parallel: Parallel,
-            sweep: Sweep) -> int:
+            sweep: Sweep) -> PolishOutcome:
     """``--polish`` (:mod:`lut.build.polish`): the candidates read from the sweep's results (each point's first
-    record), less those a resumed build already polished; how many points got a cheaper plan."""
+    record), less those a resumed build already polished."""
     assert sweep.cost_of is not None, "a polishing build scores its plans"
     swept = {p: from_record(rec) for p, rec in journal.first_records().items()}
     polished = journal.journaled_again()

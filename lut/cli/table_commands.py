@@ -85,7 +85,8 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
                f"{c['infeasible']} infeasible, {c['failed']} failed, {c['pending']} pending; "
                f"{summary.solved_now} solved in {summary.wall_time_s:.0f} s"
                + (f", {summary.reused_now} reused from {', '.join(reuse_paths)}" if summary.reused_now else "")
-               + (f", {summary.polished_now} given a cheaper plan by --polish" if polish else ""))
+               + (f"; --polish: {summary.polish.improved} of {summary.polish.tried} points tried given a cheaper plan"
+                  if polish else ""))
     for line in summary.failures[:10]:
         click.echo(f"  failed {line}")
 

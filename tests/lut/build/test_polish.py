@@ -119,7 +119,7 @@ def test_a_dearer_point_takes_its_cheaper_neighbours_plan_family_and_leaves_the_
     expected = _expected_tasks(grid, costs, set(range(grid.n_points)))
     table = Table.open(out)
     offsets = table.field("base_offset_m")
-    assert summary.solved_now == 0 and summary.polished_now == len(expected) > 0
+    assert summary.solved_now == 0 and summary.polish.improved == summary.polish.tried == len(expected) > 0
     for p in range(grid.n_points):
         # the stand-in's warm plan keeps its start's offset: a polished point holds its cheapest neighbour's
         want = OFFSETS[_rate_phase(grid, expected[p][0])] if p in expected else OFFSETS[_rate_phase(grid, p)]
@@ -135,6 +135,7 @@ def test_a_polish_that_finds_nothing_cheaper_keeps_the_plan_and_tries_the_next_n
     np.testing.assert_array_equal(table.field("base_offset_m")[3], OFFSETS[(3.5, 0.0)])
     assert table.status[3] == PointStatus.FEASIBLE.code
     assert 3 in table.reused_from[0].points
+    assert summary.polish.improved == summary.polish.tried - 1
 
 
 def test_an_interrupted_polish_resumes_to_the_same_table_without_polishing_a_point_twice(tmp_path):
@@ -160,7 +161,7 @@ def test_an_interrupted_polish_resumes_to_the_same_table_without_polishing_a_poi
     grid = prepare(tmp_path / "coarse.toml")[2]
     improved_before = sum(1 for p in seen if not np.array_equal(Table.open(out).field("base_offset_m")[p],
                                                                  OFFSETS[_rate_phase(grid, p)]))
-    assert summary.polished_now + improved_before == len(_expected_tasks(grid, _costs_by_point(grid),
+    assert summary.polish.improved + improved_before == len(_expected_tasks(grid, _costs_by_point(grid),
                                                                          set(range(grid.n_points))))
 
 
@@ -191,4 +192,4 @@ def test_the_cli_says_how_many_points_polish_improved(tmp_path, monkeypatch):
     assert res.returncode == 0, res.stderr
     _, _, grid = prepare(coarse_grid)
     n = len(_expected_tasks(grid, _costs_by_point(grid), set(range(grid.n_points))))
-    assert f"{n} given a cheaper plan by --polish" in res.stdout
+    assert f"--polish: {n} of {n} points tried given a cheaper plan" in res.stdout
