@@ -20,7 +20,7 @@ from lut.table.point_result import PointResult, PointStatus
 from lut.table.store import Table
 from planner.errors import LutgenError
 from tests.lut.build.test_reuse import OFFSETS, _grid_file, _rate_phase, _write_coarse
-from tests.support.cli import lutgen_in_process
+from tests.support.cli import assert_one_line_error, lutgen_in_process
 from tests.support.fake_build import assert_same, fake_solver_env, snapshot
 
 SOLVER = "tests.support.fake_solver:solve_in_warm_minimum"
@@ -193,3 +193,12 @@ def test_the_cli_says_how_many_points_polish_improved(tmp_path, monkeypatch):
     _, _, grid = prepare(coarse_grid)
     n = len(_expected_tasks(grid, _costs_by_point(grid), set(range(grid.n_points))))
     assert f"--polish: {n} of {n} points tried given a cheaper plan" in res.stdout
+
+
+@pytest.mark.parametrize("tries", ["0", "-1"])
+def test_fewer_than_one_try_is_refused_in_one_line_before_any_file(tmp_path, tries):
+    grid = _grid_file(tmp_path, "g", rates=3)
+    out = tmp_path / "t.h5"
+    assert_one_line_error(lutgen_in_process("build", grid, "--out", out, "--polish", "--polish-tries", tries),
+                          "--polish-tries", tries)
+    assert list(tmp_path.iterdir()) == [grid]
