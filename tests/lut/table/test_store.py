@@ -85,6 +85,28 @@ def test_journal_round_trip_is_bit_identical(tmp_path):
     assert path.read_bytes().startswith(MAGIC)
 
 
+def test_journal_keeps_each_points_first_record_and_knows_which_were_journaled_again(tmp_path):
+    path = tmp_path / "t.h5.journal"
+    first = [_record(0), _record(1, "infeasible"), _record(2)]
+    again = [_record(1), _record(2, "failed"), _record(2, "infeasible")]  # point 2 three times
+    with Journal(path, HEADER) as j:
+        for rec in first:
+            j.append(rec)
+        assert j.journaled_again() == set()
+        for rec in again:
+            j.append(rec)
+        in_process = (j.first_records(), j.journaled_again(), j.records())
+    with Journal(path, HEADER) as j:  # the same after a reopen (a resumed build)
+        reread = (j.first_records(), j.journaled_again(), j.records())
+    for firsts, journaled_again, lasts in (in_process, reread):
+        assert journaled_again == {1, 2}
+        for p in range(3):
+            _assert_records_equal(firsts[p], first[p])
+        _assert_records_equal(lasts[1], again[0])
+        _assert_records_equal(lasts[2], again[2])
+        _assert_records_equal(lasts[0], first[0])
+
+
 @pytest.mark.parametrize("damage", ["cut_3_bytes", "cut_to_frame_head", "garbage_tail", "flipped_byte"])
 def test_journal_torn_last_frame_is_ignored_then_cut_before_appending(tmp_path, damage):
     path = tmp_path / "j"
