@@ -68,7 +68,7 @@ def polish(tasks: list[PolishTask], results: dict[int, PointResult], cost_of: Co
            keep: Callable[[PointResult], None]) -> PolishOutcome:
     """Try every task's neighbours in rounds (round k: each task not yet improved, from its k-th neighbour, all in
     parallel through ``solve_from``); ``keep`` gets each task's outcome once: its better plan as soon as a try
-    finds it, else its plan of ``results`` after its last try. How many points got a better plan."""
+    finds it, else its plan of ``results`` after its last try."""
     open_tasks = {t.point: t for t in tasks}
     improved = 0
     for k in range(max((len(t.neighbours) for t in tasks), default=0)):
