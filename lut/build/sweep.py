@@ -161,9 +161,8 @@ def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpat
         done = {p: from_record(rec) for p, rec in journal.records().items()}
         reused_now = _journal_reused(journal, sweep.reused, done)
         done, solved_now = _solve_layers(grid, config, options, journal, parallel, sweep, done)
-        polished = _polish(grid, config, options, journal, parallel, sweep) if options.polish else PolishOutcome()
-        return ({p: from_record(rec) for p, rec in journal.records().items()},
-                SweepCounts(solved_now, reused_now, polished))
+        polished = _polish(grid, config, options, journal, parallel, sweep, done) if options.polish else PolishOutcome()
+        return done, SweepCounts(solved_now, reused_now, polished)
     except BaseException:
         if journal.started and not journal.records():
             journal.discard()  # nothing was solved: leave no journal that would ask for --resume
@@ -234,9 +233,9 @@ def _point_task(grid: Grid, config: GridConfig, options: BuildOptions, point: in
 
 
 def _polish(grid: Grid, config: GridConfig, options: BuildOptions, journal: Journal, parallel: Parallel,
-            sweep: Sweep) -> PolishOutcome:
+            sweep: Sweep, done: dict[int, PointResult]) -> PolishOutcome:
     """``--polish`` (:mod:`lut.build.polish`): the candidates read from the sweep's results (each point's first
-    record), less those a resumed build already polished."""
+    record), less those a resumed build already polished; ``done`` gets each point's outcome."""
     assert sweep.cost_of is not None, "a polishing build scores its plans"
     swept = {p: from_record(rec) for p, rec in journal.first_records().items()}
     polished = journal.journaled_again()
@@ -250,6 +249,7 @@ def _polish(grid: Grid, config: GridConfig, options: BuildOptions, journal: Jour
 
     def keep(result: PointResult) -> None:
         journal.append(to_record(result))
+        done[result.point] = result
         bar.update(result)
         if sweep.on_result is not None:
             sweep.on_result(result)

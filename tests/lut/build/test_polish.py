@@ -202,3 +202,11 @@ def test_fewer_than_one_try_is_refused_in_one_line_before_any_file(tmp_path, tri
     assert_one_line_error(lutgen_in_process("build", grid, "--out", out, "--polish", "--polish-tries", tries),
                           "--polish-tries", tries)
     assert list(tmp_path.iterdir()) == [grid]
+
+
+def test_equal_costs_and_a_grid_without_a_feasible_point_give_nothing_to_polish(tmp_path):
+    _, _, grid = prepare(_grid_file(tmp_path, "g", rates=3))
+    alike = {p: _result(p) for p in range(grid.n_points)}
+    assert polish_tasks(grid, alike, lambda r: 0.7, 2) == []
+    none_feasible = {p: _result(p, PointStatus.INFEASIBLE) for p in range(grid.n_points)}
+    assert polish_tasks(grid, none_feasible, lambda r: 0.7, 2) == []
