@@ -34,6 +34,7 @@ class BuildOptions:
     reuse: tuple[str, ...] = ()  # --reuse: tables whose feasible plans at this grid's points are taken (the cheapest)
     polish: bool = False  # --polish: points dearer than a neighbour solved again warm from it (lut.build.polish)
     polish_tries: int = 2  # --polish-tries: the cheaper neighbours tried per point, cheapest first
+    polish_cold: bool = False  # --polish-cold: then a cold plan, where no neighbour gave a cheaper one
 
     def solver_kwargs(self) -> dict[str, float]:
         """The point solver's robustness arguments (none without ``--robust``)."""
@@ -69,8 +70,9 @@ def check_options(options: BuildOptions) -> None:
         raise LutgenError("--resume and --force exclude each other: continue the journal, or start over")
     if not (np.isfinite(options.point_timeout_s) and 0 < options.point_timeout_s <= MAX_POINT_TIMEOUT_S):
         raise LutgenError(f"--point-timeout: must be in (0, {MAX_POINT_TIMEOUT_S:g}] s, got {options.point_timeout_s}")
-    if options.polish_tries < 1:
-        raise LutgenError(f"--polish-tries: must be >= 1, got {options.polish_tries}")
+    if options.polish_tries < (0 if options.polish_cold else 1):
+        raise LutgenError(f"--polish-tries: must be >= {0 if options.polish_cold else 1} "
+                          f"({'with' if options.polish_cold else 'without'} --polish-cold), got {options.polish_tries}")
     if options.jobs < 1:
         raise LutgenError(f"-j/--jobs: must be >= 1, got {options.jobs}")
     if options.robust_sigmas is not None and not (all(np.isfinite(v) and v >= 0 for v in options.robust_sigmas)

@@ -17,8 +17,8 @@
 * **Cold (``--cold``).** Every point not reused is planned cold, from no neighbour: one layer, all in parallel; a
   further start whose table merges with others by ``--reuse``.
 * **Polish (``--polish``).** Once every point is solved, a point dearer than an adjacent one by a factor (or without
-  a feasible plan) is solved again warm from its cheaper neighbours and keeps a cheaper feasible plan
-  (:mod:`lut.build.polish`).
+  a feasible plan) is solved again warm from its cheaper neighbours (``--polish-cold``: then cold) and keeps a cheaper
+  feasible plan (:mod:`lut.build.polish`).
 * **Determinism.** Same config (and reused tables) ⇒ same warm-start tree ⇒ same table (up to points that hit
   the time limit, which depends on the machine).
 """
@@ -150,7 +150,7 @@ def _journaled_sweep(grid: Grid, config: GridConfig, options: BuildOptions, jpat
     parallel, client = parallel_backend(options)
     header = {"model_hash": mhash, "grid_text": config.text}
     if options.polish:  # a polished point's second record must not be resumed into an unpolished build
-        header["polish"] = str(options.polish_tries)
+        header["polish"] = str(options.polish_tries) + ("+cold" if options.polish_cold else "")
     try:
         journal = Journal(jpath, header)
     except BaseException:
@@ -239,12 +239,13 @@ def _polish(grid: Grid, config: GridConfig, options: BuildOptions, journal: Jour
     assert sweep.cost_of is not None, "a polishing build scores its plans"
     swept = {p: from_record(rec) for p, rec in journal.first_records().items()}
     polished = journal.journaled_again()
-    tasks: list[PolishTask] = [t for t in polish_tasks(grid, swept, sweep.cost_of, options.polish_tries)
-                               if t.point not in polished]
+    tasks: list[PolishTask] = [t for t in polish_tasks(grid, swept, sweep.cost_of, options.polish_tries,
+                                                        options.polish_cold) if t.point not in polished]
     bar = Progress(len(tasks), 0, options.progress, desc="polish")
 
-    def solve_from(pairs: list[tuple[int, int]]) -> Iterable[PointResult]:
-        jobs = [_point_task(grid, config, options, p, nb, swept[nb], cold_fallback=False) for p, nb in pairs]
+    def solve_from(pairs: list[tuple[int, int | None]]) -> Iterable[PointResult]:
+        jobs = [_point_task(grid, config, options, p, nb, None if nb is None else swept[nb], cold_fallback=False)
+                for p, nb in pairs]
         return parallel(jobs) if jobs else ()
 
     def keep(result: PointResult) -> None:

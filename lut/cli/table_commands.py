@@ -54,11 +54,14 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
                    "try up to --point-timeout; a cheaper feasible plan replaces it.")
 @click.option("--polish-tries", type=int, default=2, show_default=True,
               help="With --polish: the cheaper neighbours tried per point, cheapest first, until one gives a cheaper "
-                   "feasible plan.")
+                   "feasible plan (0: none, with --polish-cold).")
+@click.option("--polish-cold", is_flag=True,
+              help="With --polish: a point none of whose neighbours gave a cheaper plan is then planned cold (its own "
+                   "grasp guesses, up to --point-timeout): a minimum no neighbour's warm start reaches.")
 @user_errors
 def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str | None, point_timeout_s: float,
           resume: bool, force: bool, no_progress: bool, robust_sigmas: str | None, robust_samples: int,
-          cold: bool, reuse_paths: tuple[str, ...], polish: bool, polish_tries: int) -> None:
+          cold: bool, reuse_paths: tuple[str, ...], polish: bool, polish_tries: int, polish_cold: bool) -> None:
     """Solve every point of GRID_PATH and store the verified plans in an HDF5 look-up table.
 
     Every finished point goes to OUT.journal at once; after a crash or kill, rerun with --resume.
@@ -74,7 +77,7 @@ def build(grid_path: str, out_path: str, jobs: int, backend: str, scheduler: str
     options = BuildOptions(jobs=jobs, backend=backend, scheduler=scheduler, point_timeout_s=point_timeout_s,
                            resume=resume, force=force, progress=not no_progress,
                            robust_sigmas=sigmas, robust_samples=robust_samples, cold=cold, reuse=reuse_paths,
-                           polish=polish, polish_tries=polish_tries)
+                           polish=polish, polish_tries=polish_tries, polish_cold=polish_cold)
     summary = run_build(grid_path, out_path, options)
     c = summary.counts
     if summary.outcome is BuildOutcome.ALREADY_COMPLETE:

@@ -22,6 +22,7 @@ from planner.errors import LutgenError
 from tests.lut.build.test_reuse import OFFSETS, _grid_file, _rate_phase, _write_coarse
 from tests.support.cli import assert_one_line_error, lutgen_in_process
 from tests.support.fake_build import assert_same, fake_solver_env, snapshot
+from tests.support.fake_solver import solve as fake_solve
 
 SOLVER = "tests.support.fake_solver:solve_in_warm_minimum"
 
@@ -102,6 +103,14 @@ def test_the_ratio_at_and_past_its_edge_for_positive_negative_and_near_zero_cost
     assert (tasks.get(3) == (0,)) is candidate
 
 
+def _cold_offset(grid_file: Path, point: int) -> np.ndarray:
+    """The stand-in solver's cold plan's base offset at ``point`` (a function of the state alone) [m]."""
+    config, _, grid = prepare(grid_file)
+    state = grid.state(point)
+    return fake_solve(str(config.scenario_path), point, state.attitude_wxyz, state.omega_body_rad_s, None,
+                      0.0)["base_offset_m"]
+
+
 def _polished_build(tmp_path: Path, name: str, **options) -> tuple[Path, object]:
     coarse_grid = _grid_file(tmp_path, "coarse", rates=3)
     if not (tmp_path / "coarse.h5").exists():
@@ -165,7 +174,9 @@ def test_an_interrupted_polish_resumes_to_the_same_table_without_polishing_a_poi
                                                                          set(range(grid.n_points))))
 
 
-def test_a_polishing_journal_is_not_resumed_without_polish(tmp_path):
+@pytest.mark.parametrize("resumed", [{}, {"polish": True, "polish_cold": True}],
+                         ids=["without polish", "with cold tries"])
+def test_a_polishing_journal_is_resumed_only_with_the_same_polish(tmp_path, resumed):
     out = tmp_path / "p.h5"
     coarse_grid = _grid_file(tmp_path, "coarse", rates=3)
     _write_coarse(tmp_path / "coarse.h5", coarse_grid)
@@ -178,7 +189,8 @@ def test_a_polishing_journal_is_not_resumed_without_polish(tmp_path):
         run_build(coarse_grid, out, BuildOptions(jobs=1, solver=SOLVER, progress=False, reuse=coarse, polish=True),
                   interrupt)
     with pytest.raises(LutgenError, match="polish"):
-        run_build(coarse_grid, out, BuildOptions(jobs=1, solver=SOLVER, progress=False, reuse=coarse, resume=True))
+        run_build(coarse_grid, out, BuildOptions(jobs=1, solver=SOLVER, progress=False, reuse=coarse, resume=True,
+                                                 **resumed))
 
 
 def test_the_cli_says_how_many_points_polish_improved(tmp_path, monkeypatch):
@@ -210,3 +222,55 @@ def test_equal_costs_and_a_grid_without_a_feasible_point_give_nothing_to_polish(
     assert polish_tasks(grid, alike, lambda r: 0.7, 2) == []
     none_feasible = {p: _result(p, PointStatus.INFEASIBLE) for p in range(grid.n_points)}
     assert polish_tasks(grid, none_feasible, lambda r: 0.7, 2) == []
+
+
+def test_with_cold_each_task_tries_a_cold_plan_after_its_neighbours_and_zero_tries_leave_only_that(tmp_path):
+    _, _, grid = prepare(_grid_file(tmp_path, "g", rates=3))
+    costs = _costs_by_point(grid)
+    results = {p: _result(p) for p in range(grid.n_points)}
+    warm_only = polish_tasks(grid, results, lambda r: costs[r.point], 2)
+    with_cold = polish_tasks(grid, results, lambda r: costs[r.point], 2, cold=True)
+    assert [t.point for t in with_cold] == [t.point for t in warm_only]
+    assert all(c.starts == w.neighbours + (None,) and w.starts == w.neighbours
+               for c, w in zip(with_cold, warm_only, strict=True))
+    assert [t.starts for t in polish_tasks(grid, results, lambda r: costs[r.point], 0, cold=True)] \
+        == [(None,)] * len(warm_only)
+
+
+def test_a_point_no_neighbour_improved_takes_its_cold_plan_when_that_is_cheaper(tmp_path, monkeypatch):
+    monkeypatch.setenv("LUTGEN_FAKE_INFEASIBLE", "3")  # 3.5 °/s at 0°: both warm tries infeasible
+    out, summary = _polished_build(tmp_path, "cold", polish_cold=True)
+    cold = _cold_offset(tmp_path / "coarse.toml", 3)
+    assert np.sum(np.square(cold)) < np.sum(np.square(OFFSETS[(3.5, 0.0)]))  # the premise: the cold plan is cheaper
+    table = Table.open(out)
+    np.testing.assert_array_equal(table.field("base_offset_m")[3], cold)
+    assert 3 not in table.reused_from[0].points
+    assert summary.polish.improved == summary.polish.tried  # without --polish-cold: one fewer (the test above)
+
+
+def test_zero_tries_with_cold_plans_every_candidate_cold_and_keeps_the_cheaper_plan(tmp_path):
+    out, summary = _polished_build(tmp_path, "cold_only", polish_cold=True, polish_tries=0)
+    grid_file = tmp_path / "coarse.toml"
+    _, _, grid = prepare(grid_file)
+    costs = _costs_by_point(grid)
+    candidates = _expected_tasks(grid, costs, set(range(grid.n_points)))
+    offsets = Table.open(out).field("base_offset_m")
+    for p in range(grid.n_points):
+        cold = _cold_offset(grid_file, p)
+        want = cold if p in candidates and np.sum(np.square(cold)) < costs[p] else OFFSETS[_rate_phase(grid, p)]
+        np.testing.assert_array_equal(offsets[p], want, err_msg=f"point {p}")
+    assert summary.polish.tried == len(candidates) and 0 < summary.polish.improved
+
+
+def test_the_cli_takes_zero_tries_with_polish_cold(tmp_path, monkeypatch):
+    import lut.build.options
+
+    monkeypatch.setattr(lut.build.options, "BuildOptions", partial(BuildOptions, solver=SOLVER))
+    coarse_grid = _grid_file(tmp_path, "coarse", rates=3)
+    _write_coarse(tmp_path / "coarse.h5", coarse_grid)
+    res = lutgen_in_process("build", coarse_grid, "--out", tmp_path / "cli.h5", "--reuse", tmp_path / "coarse.h5",
+                            "--polish", "--polish-tries", "0", "--polish-cold", "--no-progress")
+    assert res.returncode == 0, res.stderr
+    assert "--polish:" in res.stdout
+    assert_one_line_error(lutgen_in_process("build", coarse_grid, "--out", tmp_path / "neg.h5", "--polish",
+                                            "--polish-tries", "-1", "--polish-cold"), "--polish-tries", "-1")
