@@ -173,6 +173,7 @@ class StabilizationProblem:
         self.coarse_via_points = sc.stabilization.coarse_via_points
         self._coarse: StabilizationProblem | None = None
         self._dense: ca.Function | None = None
+        self._dense_clearance: tuple[ca.Function, SceneDistanceCallback] | None = None
         self.parameter_layout = self._parameter_layout()
         P = ca.MX.sym("P", self.n_params)
         par = ca.MX.sym("par", self.parameter_layout.size)
@@ -294,6 +295,20 @@ class StabilizationProblem:
             self._dense = ca.Function("stabilization_dense_torques", [P, par],
                                       [self.at_times(P, par, self.dense_times_s, False).torques])
         return self._dense
+
+    def dense_distances(self) -> ca.Function:
+        """``(P, par) -> distances (n_pairs·m,)`` [m], point-major, of every collision pair at :attr:`dense_times_s`:
+        the NLP's own engine between its via points (built on first use)."""
+        if self._dense_clearance is None:
+            P = ca.MX.sym("P", self.n_params)
+            par = ca.MX.sym("par", self.parameter_layout.size)
+            poses = self.at_times(P, par, self.dense_times_s).poses
+            callback = SceneDistanceCallback("stabilization_dense_distance", self.scene,
+                                             [*self.scenario.robot.body_names, TARGET_BODY], len(poses))
+            # the callback object must outlive the Function that calls it
+            self._dense_clearance = ca.Function("stabilization_dense_distances", [P, par],
+                                                [callback(ca.vertcat(*poses))]), callback
+        return self._dense_clearance[0]
 
     @property
     def dense_times_s(self) -> Array:

@@ -17,16 +17,21 @@ from numpy.typing import NDArray
 from planner.deadline import NO_DEADLINE, Deadline
 from planner.nlp.feasibility_stop import StallRule
 from planner.nlp.outcome import SolveOutcome
-from planner.phases.sampled_peak import peak_magnitude
+from planner.phases.between_via_points import (
+    AS_SOLVED,
+    ViaPointBounds,
+    between_via_points,
+    failed_between,
+    tightened,
+    within_limits,
+)
 from planner.phases.stabilization import GraspState, StabilizationProblem, StabilizationSolution
 
 Array = NDArray[np.float64]
 
-# a solve whose torque peaks above the limit between its via points is repeated this many times, its via-point
-# bound lowered by the overshoot times TORQUE_MARGIN (the 5 % back-off held on five grasps; a scenario II flat spin
-# peaked 0.51 N·m above its via points, 10.013 N·m against the 10 N·m limit)
-TORQUE_ROUNDS = 2
-TORQUE_MARGIN = 0.98
+# a solve that breaks the torque limit or the collision margin between its via points is repeated this many times,
+# its via-point bounds tightened (planner.phases.between_via_points)
+HOLD_ROUNDS = 2
 
 
 def solve_stabilization(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None = None,
@@ -79,30 +84,38 @@ def _coarse_to_fine(problem: StabilizationProblem, grasp: GraspState, max_iterat
 
 def _held_between_via_points(problem: StabilizationProblem, grasp: GraspState, solved: StabilizationSolution,
                              max_iterations: int | None, deadline: Deadline) -> StabilizationSolution:
-    """``solved``, once its grasp torque holds the limit between the via points too (the NLP's own model at
-    :data:`~planner.phases.stabilization.DENSE_FACTOR` times as many instants, the peak between them found by a
-    local cubic, :func:`~planner.phases.sampled_peak.peak_magnitude`); where it peaks above, the solve is
-    repeated warm with the via-point torque bound lowered by the overshoot, up to :data:`TORQUE_ROUNDS` times; still
-    above, it is a failure (status ``Torque_Over_Limit_Between_Via_Points``)."""
-    limit = problem.torque_limit
-    if not np.isfinite(limit):
-        return solved
-    scale, par = 1.0, problem.parameters(grasp)
-    for round_ in range(TORQUE_ROUNDS + 1):
+    """``solved``, once its grasp torque and its clearance hold between the via points too (the NLP's own model at
+    :data:`~planner.phases.stabilization.DENSE_FACTOR` times as many instants,
+    :func:`~planner.phases.between_via_points.between_via_points`); where either does not, the solve is repeated warm
+    with its via-point bounds tightened by the shortfall (:func:`~planner.phases.between_via_points.tightened`), up to
+    :data:`HOLD_ROUNDS` times. A pair short of only the pad (:data:`~planner.phases.between_via_points.CLEARANCE_PAD_M`)
+    triggers a re-solve but is not refused: should the tighter re-solves fail, the last solve within the limits
+    themselves is the answer (``verify`` judges it). Still beyond a limit, the solve is a failure (status
+    ``Torque_Over_Limit_Between_Via_Points`` or ``Clearance_Under_Margin_Between_Via_Points``)."""
+    bounds, holding = AS_SOLVED, None  # holding: the last solve within the limits themselves, short of the pad only
+    for round_ in range(HOLD_ROUNDS + 1):
         if not solved.success:
+            return solved if holding is None else _spent_on(holding, solved)
+        seen = between_via_points(problem, grasp, solved.params)
+        tighter = tightened(problem, bounds, seen)
+        if tighter is None:
             return solved
-        torques = np.asarray(problem.dense_torques()(solved.params, par)).reshape(-1, 3)
-        peak = peak_magnitude(problem.dense_times_s, torques)
-        if peak <= limit:
-            return solved
+        holding = solved if within_limits(problem, seen) else holding
         left = None if max_iterations is None else max_iterations - solved.iterations
-        if round_ == TORQUE_ROUNDS or (left is not None and left <= 0) or deadline.passed:
+        if round_ == HOLD_ROUNDS or (left is not None and left <= 0) or deadline.passed:
             break
-        scale *= TORQUE_MARGIN * limit / peak
-        again = solve_once(problem, grasp, solved.params, left, deadline, torque_scale=scale)
+        bounds = tighter
+        again = solve_once(problem, grasp, solved.params, left, deadline, bounds=bounds)
         solved = replace(again, iterations=again.iterations + solved.iterations,
                          solve_time_s=again.solve_time_s + solved.solve_time_s)
-    return replace(solved, success=False, status=SolveOutcome.TORQUE_BETWEEN_VIA_POINTS)
+    if holding is not None:
+        return _spent_on(holding, solved)
+    return replace(solved, success=False, status=failed_between(problem, seen))
+
+
+def _spent_on(kept: StabilizationSolution, last: StabilizationSolution) -> StabilizationSolution:
+    """``kept`` with the iterations and solve time of every solve up to ``last`` (which includes it)."""
+    return replace(kept, iterations=last.iterations, solve_time_s=last.solve_time_s)
 
 
 def _screened(max_iterations: int | None, screen_iterations: int | None) -> int | None:
@@ -113,20 +126,15 @@ def _screened(max_iterations: int | None, screen_iterations: int | None) -> int 
 
 def solve_once(problem: StabilizationProblem, grasp: GraspState, warm_params: Array | None,
                max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE,
-               torque_scale: float = 1.0, stall: StallRule | None = None) -> StabilizationSolution:
-    """One IPOPT run of ``problem`` from ``warm_params`` (None: its initial parameters), its via-point torque bounds
-    multiplied by ``torque_scale``, ended early by ``stall`` (None: never)."""
+               bounds: ViaPointBounds = AS_SOLVED, stall: StallRule | None = None) -> StabilizationSolution:
+    """One IPOPT run of ``problem`` from ``warm_params`` (None: its initial parameters), its via-point bounds
+    tightened by ``bounds`` (:mod:`planner.phases.between_via_points`), ended early by ``stall`` (None: never)."""
     par = problem.parameters(grasp)
     w0 = problem.initial_params(grasp) if warm_params is None else np.asarray(warm_params, dtype=float)
     if problem.n_extra:
         M0, _, _ = problem.outputs(w0, par)
         w0 = np.concatenate([w0, [float(np.abs(np.asarray(M0)).max())]])
-    lbg, ubg = problem.lbg, problem.ubg
-    if torque_scale != 1.0:
-        rows = problem.constraints.slice("grasp_torque")
-        lbg, ubg = lbg.copy(), ubg.copy()
-        lbg[rows] *= torque_scale
-        ubg[rows] *= torque_scale
+    lbg, ubg = bounds.applied(problem)
     problem.stop.arm(lbg, ubg, problem.feasibility_only, max_iterations, deadline, stall)
     t0 = time.perf_counter()
     sol = problem.solver(x0=w0, p=par, lbx=problem.lbw, ubx=problem.ubw, lbg=lbg, ubg=ubg)

@@ -24,6 +24,7 @@ from planner.model.rotation import quat_to_matrix
 from planner.nlp.outcome import SolveOutcome
 from planner.nlp.phase_spline import stabilization_vertices
 from planner.phases import stabilization_solve
+from planner.phases.between_via_points import AS_SOLVED, CLEARANCE_PAD_M, TORQUE_MARGIN, ViaPointBounds
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
@@ -259,14 +260,17 @@ def test_the_dense_torques_hold_the_nlps_own_at_its_via_points(problem, grasp):
     assert np.abs(dense).max() >= np.abs(at_via).max() - atol  # a superset of the instants, to integration accuracy
 
 
-class _OverLimitStandIn:
-    """What the dense check reads of a problem: a torque limit and a dense peak that falls as the bound tightens."""
+class _BetweenStandIn:
+    """What the dense check reads of a problem: the limits, and dense samples (one instant) that change as the bounds
+    tighten: a torque peak and each pair's clearance per re-solve."""
 
-    dense_times_s = np.array([0.0])  # one instant: its torque is the peak
+    dense_times_s = np.array([0.0])  # one instant: its torque is the peak, its distances the least
 
-    def __init__(self, problem, peaks):
+    def __init__(self, problem, peaks, distances=None):
         self.torque_limit = 10.0
+        self.scenario = problem.scenario
         self.peaks = list(peaks)
+        self.distances = list(distances) if distances is not None else [np.full(3, 0.1)] * len(self.peaks)
         self.problem = problem
 
     def parameters(self, grasp):
@@ -275,33 +279,87 @@ class _OverLimitStandIn:
     def dense_torques(self):
         return lambda P, par: np.array([self.peaks.pop(0), 0.0, 0.0])
 
+    def dense_distances(self):
+        return lambda P, par: np.asarray(self.distances.pop(0))
 
-def test_a_torque_peak_between_via_points_tightens_the_bound_and_resolves(problem, grasp, monkeypatch):
-    scales = []
 
-    def resolve(prob, grasp_, warm, left, deadline, torque_scale=1.0):
-        scales.append(torque_scale)
+def _recording_resolve(bounds_seen: list):
+    def resolve(prob, grasp_, warm, left, deadline, bounds=AS_SOLVED):
+        bounds_seen.append(bounds)
         return StabilizationSolution(np.asarray(warm), True, SolveOutcome.FEASIBLE_POINT_FOUND, 3, 0.1, 0.0, 0.0,
                                      9.0, 0.1)
+    return resolve
 
-    monkeypatch.setattr(stabilization_solve, "solve_once", resolve)
+
+def test_a_torque_peak_between_via_points_tightens_the_bound_and_resolves(problem, grasp, monkeypatch):
+    seen: list = []
+    monkeypatch.setattr(stabilization_solve, "solve_once", _recording_resolve(seen))
     first = StabilizationSolution(problem.initial_params(grasp), True, SolveOutcome.FEASIBLE_POINT_FOUND, 20, 1.0,
                                   0.0, 0.0, 9.5, 0.1)
     held = stabilization_solve._held_between_via_points
     # 10.5 N·m between via points: one re-solve with the bound × 0.98·10/10.5, then 9.9 N·m holds
-    out = held(_OverLimitStandIn(problem, [10.5, 9.9]), grasp, first, 120, stabilization_solve.NO_DEADLINE)
+    out = held(_BetweenStandIn(problem, [10.5, 9.9]), grasp, first, 120, stabilization_solve.NO_DEADLINE)
     assert out.success and out.iterations == 23
-    assert scales == [pytest.approx(stabilization_solve.TORQUE_MARGIN * 10.0 / 10.5)]
+    assert [b.torque_scale for b in seen] == [pytest.approx(TORQUE_MARGIN * 10.0 / 10.5)]
+    assert not any(seen[0].clearance_raise_m)
     # still above after every round: a failure the grasp search moves on from
-    scales.clear()
-    peaks = [10.5] * (stabilization_solve.TORQUE_ROUNDS + 1)
-    out = held(_OverLimitStandIn(problem, peaks), grasp, first, 120, stabilization_solve.NO_DEADLINE)
+    seen.clear()
+    peaks = [10.5] * (stabilization_solve.HOLD_ROUNDS + 1)
+    out = held(_BetweenStandIn(problem, peaks), grasp, first, 120, stabilization_solve.NO_DEADLINE)
     assert not out.success and out.status == SolveOutcome.TORQUE_BETWEEN_VIA_POINTS
-    assert len(scales) == stabilization_solve.TORQUE_ROUNDS
+    assert len(seen) == stabilization_solve.HOLD_ROUNDS
     # within the limit at once: the solve as it was, no re-solve
-    scales.clear()
-    assert held(_OverLimitStandIn(problem, [9.99]), grasp, first, 120, stabilization_solve.NO_DEADLINE) is first
-    assert scales == []
+    seen.clear()
+    assert held(_BetweenStandIn(problem, [9.99]), grasp, first, 120, stabilization_solve.NO_DEADLINE) is first
+    assert seen == []
+
+
+def test_a_pair_too_close_between_via_points_raises_its_clearance_bound_alone(problem, grasp, monkeypatch):
+    """Pair 1 at 1.2 cm between the via points (margin 2 cm): one re-solve with that pair's bound raised by its
+    shortfall below margin + pad, the others' not; at 2.6 cm it holds. Torque within its limit: its bound as it was."""
+    margin = problem.scenario.limits.collision_margin_m
+    seen: list = []
+    monkeypatch.setattr(stabilization_solve, "solve_once", _recording_resolve(seen))
+    first = StabilizationSolution(problem.initial_params(grasp), True, SolveOutcome.FEASIBLE_POINT_FOUND, 20, 1.0,
+                                  0.0, 0.0, 9.5, 0.1)
+    held = stabilization_solve._held_between_via_points
+    close, clear = np.array([0.1, 0.012, 0.3]), np.array([0.1, margin + CLEARANCE_PAD_M + 1e-3, 0.3])
+    out = held(_BetweenStandIn(problem, [9.0, 9.0], [close, clear]), grasp, first, 120,
+               stabilization_solve.NO_DEADLINE)
+    assert out.success and out.iterations == 23
+    (bounds,) = seen
+    assert bounds.torque_scale == 1.0
+    np.testing.assert_allclose(bounds.clearance_raise_m, [0.0, margin + CLEARANCE_PAD_M - 0.012, 0.0], atol=1e-15)
+    # exactly at margin + pad holds; just below it re-solves, and the raises accumulate over the rounds
+    seen.clear()
+    edge = np.array([0.1, margin + CLEARANCE_PAD_M, 0.3])
+    assert held(_BetweenStandIn(problem, [9.0], [edge]), grasp, first, 120, stabilization_solve.NO_DEADLINE) is first
+    rounds = stabilization_solve.HOLD_ROUNDS + 1
+    out = held(_BetweenStandIn(problem, [9.0] * rounds, [edge - 1e-6] * rounds), grasp, first, 120,
+               stabilization_solve.NO_DEADLINE)
+    assert [b.clearance_raise_m[1] for b in seen] == pytest.approx([1e-6, 2e-6])
+    # short of the pad only, never of the margin: the last solve is the answer (verify judges it), not a failure
+    assert out.success and out.iterations == 20 + 3 * stabilization_solve.HOLD_ROUNDS
+    # below the margin itself after every round: a failure the grasp search moves on from
+    out = held(_BetweenStandIn(problem, [9.0] * rounds, [close] * rounds), grasp, first, 120,
+               stabilization_solve.NO_DEADLINE)
+    assert not out.success and out.status == SolveOutcome.CLEARANCE_BETWEEN_VIA_POINTS
+
+
+def test_a_tighter_resolve_that_fails_falls_back_to_the_solve_within_the_margin(problem, grasp, monkeypatch):
+    """Short of the pad only (2.2 cm against 2 cm + 5 mm): the re-solve with the raised bound fails (its budget); the
+    answer is the first solve, with the iterations of both."""
+    failing = StabilizationSolution(problem.initial_params(grasp) + 1.0, False,
+                                    SolveOutcome.ITERATION_BUDGET_EXHAUSTED, 7, 0.5, 0.0, 0.0, 30.0, 0.0)
+    monkeypatch.setattr(stabilization_solve, "solve_once", lambda *a, **k: failing)
+    first = StabilizationSolution(problem.initial_params(grasp), True, SolveOutcome.FEASIBLE_POINT_FOUND, 20, 1.0,
+                                  0.0, 0.0, 9.5, 0.1)
+    near = np.array([0.1, problem.scenario.limits.collision_margin_m + 0.002, 0.3])
+    out = stabilization_solve._held_between_via_points(_BetweenStandIn(problem, [9.0], [near]), grasp, first, 120,
+                                                      stabilization_solve.NO_DEADLINE)
+    assert out.success and out.status == SolveOutcome.FEASIBLE_POINT_FOUND
+    np.testing.assert_array_equal(out.params, first.params)
+    assert out.iterations == 27 and out.solve_time_s == pytest.approx(1.5)
 
 
 def _relative_excess(problem, params, par) -> float:
@@ -336,3 +394,34 @@ def test_a_failing_stabilization_answers_with_its_least_violating_iterate(proble
     violations = [_relative_excess(problem, x, par) for x in iterates]
     assert min(violations) < violations[-1]  # the last iterate is not the least violating one
     np.testing.assert_array_equal(answer.params, iterates[int(np.argmin(violations))])
+
+
+def test_the_dense_distances_at_the_via_points_are_the_nlps_own(problem, grasp):
+    """The dense clearance function, sampled at the via points (the dense instants include them), gives the NLP's own
+    constraint distances there, pair by pair: the same engine, the same layout (point-major), the same instants."""
+    par = problem.parameters(grasp)
+    params = problem.initial_params(grasp)
+    dense = np.asarray(problem.dense_distances()(params, par)).reshape(len(problem.dense_times_s), -1)
+    at_via = np.asarray(problem.outputs(params, par)[2]).reshape(problem.k, -1)
+    rows = [int(np.argmin(np.abs(problem.dense_times_s - t))) for t in problem.via_times_s]
+    np.testing.assert_allclose(problem.dense_times_s[rows], problem.via_times_s, atol=1e-9)
+    np.testing.assert_allclose(dense[rows], at_via, rtol=0, atol=1e-9)
+    assert dense.shape[1] == len(problem.scene.pairs)
+
+
+def test_tightened_bounds_raise_only_their_pairs_rows_at_every_via_point_and_scale_only_the_torque(problem):
+    n_pairs = len(problem.scene.pairs)
+    raise_m = np.zeros(n_pairs)
+    raise_m[[0, n_pairs - 1]] = 0.01, 0.003
+    lbg, ubg = ViaPointBounds(0.9, tuple(raise_m)).applied(problem)
+    collision, torque = problem.constraints.slice("collision"), problem.constraints.slice("grasp_torque")
+    want_lbg, want_ubg = problem.lbg.copy(), problem.ubg.copy()
+    for via in range(problem.k):  # written out row by row, apart from the np.tile in applied()
+        want_lbg[collision.start + via * n_pairs] += 0.01
+        want_lbg[collision.start + via * n_pairs + n_pairs - 1] += 0.003
+    want_lbg[torque], want_ubg[torque] = 0.9 * want_lbg[torque], 0.9 * want_ubg[torque]
+    np.testing.assert_array_equal(lbg, want_lbg)
+    np.testing.assert_array_equal(ubg, want_ubg)
+    as_solved = AS_SOLVED.applied(problem)
+    np.testing.assert_array_equal(as_solved[0], problem.lbg)
+    assert as_solved[0] is not problem.lbg  # a copy: the problem's own bounds are never changed
