@@ -23,9 +23,9 @@ if TYPE_CHECKING:
 # IPOPT iterations a repair gets: the repairs that succeeded took 0-5 (flat_spin_I_energy's off-grid queries), the ones
 # that failed ran to 116-120 (24-32 s each; the demo's query spent 45 s on three of them, 18 s with this cap)
 REPAIR_ITERATIONS = 15
-# a repair whose violation has stopped falling rarely succeeds within its iterations: given up, it frees the time
-# for the next plan (README, "The measurements behind the planner's constants")
-REPAIR_STALL = StallRule(after=5, over=5, ratio=0.7)
+# a repair whose violation has not halved over its last five iterations rarely succeeds within its iterations: given
+# up, it frees the time for the next plan (README, "The measurements behind the planner's constants")
+REPAIR_STALL = StallRule(after=5, over=5, ratio=0.5)
 
 
 def stabilization_only(report: VerifyReport) -> bool:
