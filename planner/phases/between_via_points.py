@@ -71,16 +71,20 @@ def between_via_points(problem: StabilizationProblem, grasp: GraspState, params:
 
 def tightened(problem: StabilizationProblem, bounds: ViaPointBounds,
               seen: BetweenViaPoints) -> ViaPointBounds | None:
-    """``bounds`` tightened where ``seen`` breaks a limit between the via points (the torque limit, the collision
-    margin), else None: it holds."""
-    limit = problem.torque_limit
-    over_torque = np.isfinite(limit) and seen.peak_torque_nm > limit
+    """``bounds`` tightened where ``seen`` peaks above the torque limit or comes closer than the collision margin plus
+    :data:`CLEARANCE_PAD_M` between the via points, else None: it holds."""
+    over_torque = _over_torque(problem, seen)
     short_m = _clearance_short_m(problem, seen)
     if not over_torque and not short_m.any():
         return None
-    scale = bounds.torque_scale * (TORQUE_MARGIN * limit / seen.peak_torque_nm if over_torque else 1.0)
+    scale = bounds.torque_scale * (TORQUE_MARGIN * problem.torque_limit / seen.peak_torque_nm if over_torque else 1.0)
     raised = np.asarray(bounds.clearance_raise_m or np.zeros(len(short_m)), dtype=float) + short_m
     return ViaPointBounds(float(scale), tuple(float(r) for r in raised))
+
+
+def _over_torque(problem: StabilizationProblem, seen: BetweenViaPoints) -> bool:
+    """Whether ``seen``'s torque peaks above a (finite) torque limit."""
+    return bool(np.isfinite(problem.torque_limit) and seen.peak_torque_nm > problem.torque_limit)
 
 
 def _clearance_short_m(problem: StabilizationProblem, seen: BetweenViaPoints) -> Array:
@@ -92,14 +96,12 @@ def _clearance_short_m(problem: StabilizationProblem, seen: BetweenViaPoints) ->
 
 def within_limits(problem: StabilizationProblem, seen: BetweenViaPoints) -> bool:
     """Whether ``seen`` keeps the torque limit and the collision margin themselves (the pad aside)."""
-    limit = problem.torque_limit
-    return not (np.isfinite(limit) and seen.peak_torque_nm > limit) \
+    return not _over_torque(problem, seen) \
         and bool(np.all(seen.min_distance_m >= problem.scenario.limits.collision_margin_m))
 
 
 def failed_between(problem: StabilizationProblem, seen: BetweenViaPoints) -> SolveOutcome:
-    """The outcome of a braking still breaking a limit between its via points after every re-solve."""
-    limit = problem.torque_limit
-    if np.isfinite(limit) and seen.peak_torque_nm > limit:
+    """The outcome of a braking still beyond a limit between its via points after every re-solve."""
+    if _over_torque(problem, seen):
         return SolveOutcome.TORQUE_BETWEEN_VIA_POINTS
     return SolveOutcome.CLEARANCE_BETWEEN_VIA_POINTS
