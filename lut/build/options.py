@@ -70,9 +70,10 @@ def check_options(options: BuildOptions) -> None:
         raise LutgenError("--resume and --force exclude each other: continue the journal, or start over")
     if not (np.isfinite(options.point_timeout_s) and 0 < options.point_timeout_s <= MAX_POINT_TIMEOUT_S):
         raise LutgenError(f"--point-timeout: must be in (0, {MAX_POINT_TIMEOUT_S:g}] s, got {options.point_timeout_s}")
-    if options.polish_tries < (0 if options.polish_cold else 1):
-        raise LutgenError(f"--polish-tries: must be >= {0 if options.polish_cold else 1} "
-                          f"({'with' if options.polish_cold else 'without'} --polish-cold), got {options.polish_tries}")
+    least_tries = 0 if options.polish_cold else 1  # no neighbour to try leaves only --polish-cold's cold plan
+    if options.polish_tries < least_tries:
+        raise LutgenError(f"--polish-tries: must be >= {least_tries} (0 only with --polish-cold), "
+                          f"got {options.polish_tries}")
     if options.jobs < 1:
         raise LutgenError(f"-j/--jobs: must be >= 1, got {options.jobs}")
     if options.robust_sigmas is not None and not (all(np.isfinite(v) and v >= 0 for v in options.robust_sigmas)

@@ -63,10 +63,9 @@ AS_SOLVED = ViaPointBounds()  # the NLP's own bounds
 def between_via_points(problem: StabilizationProblem, grasp: GraspState, params: Array) -> BetweenViaPoints:
     """The braking of ``params`` from ``grasp`` at :attr:`~StabilizationProblem.dense_times_s`: its torque peak (a
     local cubic between samples, :func:`~planner.phases.sampled_peak.peak_magnitude`), each pair's least clearance."""
-    par = problem.parameters(grasp)
-    torques = np.asarray(problem.dense_torques()(params, par)).reshape(-1, 3)
-    distances = np.asarray(problem.dense_distances()(params, par)).reshape(len(problem.dense_times_s), -1)
-    return BetweenViaPoints(peak_magnitude(problem.dense_times_s, torques), distances.min(axis=0))
+    torques, distances = (np.asarray(a) for a in problem.dense_samples()(params, problem.parameters(grasp)))
+    return BetweenViaPoints(peak_magnitude(problem.dense_times_s, torques.reshape(-1, 3)),
+                            distances.reshape(len(problem.dense_times_s), -1).min(axis=0))
 
 
 def tightened(problem: StabilizationProblem, bounds: ViaPointBounds,
@@ -87,17 +86,14 @@ def _over_torque(problem: StabilizationProblem, seen: BetweenViaPoints) -> bool:
     return bool(np.isfinite(problem.torque_limit) and seen.peak_torque_nm > problem.torque_limit)
 
 
-def _clearance_short_m(problem: StabilizationProblem, seen: BetweenViaPoints) -> Array:
-    """(n_pairs,) how far each pair's dense clearance falls below the margin plus :data:`CLEARANCE_PAD_M` [m] (0:
-    it holds)."""
-    held_m = problem.scenario.limits.collision_margin_m + CLEARANCE_PAD_M
-    return np.maximum(held_m - seen.min_distance_m, 0.0)
+def _clearance_short_m(problem: StabilizationProblem, seen: BetweenViaPoints, pad_m: float = CLEARANCE_PAD_M) -> Array:
+    """(n_pairs,) how far each pair's dense clearance falls below the margin plus ``pad_m`` [m] (0: it holds)."""
+    return np.maximum(problem.scenario.limits.collision_margin_m + pad_m - seen.min_distance_m, 0.0)
 
 
 def within_limits(problem: StabilizationProblem, seen: BetweenViaPoints) -> bool:
     """Whether ``seen`` keeps the torque limit and the collision margin themselves (the pad aside)."""
-    return not _over_torque(problem, seen) \
-        and bool(np.all(seen.min_distance_m >= problem.scenario.limits.collision_margin_m))
+    return not _over_torque(problem, seen) and not _clearance_short_m(problem, seen, 0.0).any()
 
 
 def failed_between(problem: StabilizationProblem, seen: BetweenViaPoints) -> SolveOutcome:

@@ -149,7 +149,8 @@ class _AtViaPoints:
     poses: list[ca.MX]  # k stacked body poses (chaser bodies, then the grasped target)
 
 
-# the torque between via points is checked at this many times as many instants (planner.phases.stabilization_solve)
+# the torque and clearance between via points are checked at this many times as many instants
+# (planner.phases.between_via_points)
 DENSE_FACTOR = 4
 
 
@@ -172,8 +173,7 @@ class StabilizationProblem:
         self.torque_limit_nm = torque_limit_nm
         self.coarse_via_points = sc.stabilization.coarse_via_points
         self._coarse: StabilizationProblem | None = None
-        self._dense: ca.Function | None = None
-        self._dense_clearance: tuple[ca.Function, SceneDistanceCallback] | None = None
+        self._dense: tuple[ca.Function, SceneDistanceCallback] | None = None
         self.parameter_layout = self._parameter_layout()
         P = ca.MX.sym("P", self.n_params)
         par = ca.MX.sym("par", self.parameter_layout.size)
@@ -286,33 +286,24 @@ class StabilizationProblem:
         """The grasp torque limit this problem holds [N·m] (per component; inf: none)."""
         return self.scenario.limits.grasp_torque_max_nm if self.torque_limit_nm is None else self.torque_limit_nm
 
-    def dense_torques(self) -> ca.Function:
-        """``(P, par) -> torques (3·m,)`` [N·m, grasp frame] at DENSE_FACTOR times as many instants as the via points
-        (and at them): the NLP's own model between its via points (built on first use)."""
+    def dense_samples(self) -> ca.Function:
+        """``(P, par) -> (torques (3·m,) [N·m, grasp frame], distances (n_pairs·m,) [m], point-major)`` at
+        :attr:`dense_times_s` (the via points among them): the NLP's own model and collision engine between its via
+        points, from one integration of the base (built on first use)."""
         if self._dense is None:
             P = ca.MX.sym("P", self.n_params)
             par = ca.MX.sym("par", self.parameter_layout.size)
-            self._dense = ca.Function("stabilization_dense_torques", [P, par],
-                                      [self.at_times(P, par, self.dense_times_s, False).torques])
-        return self._dense
-
-    def dense_distances(self) -> ca.Function:
-        """``(P, par) -> distances (n_pairs·m,)`` [m], point-major, of every collision pair at :attr:`dense_times_s`:
-        the NLP's own engine between its via points (built on first use)."""
-        if self._dense_clearance is None:
-            P = ca.MX.sym("P", self.n_params)
-            par = ca.MX.sym("par", self.parameter_layout.size)
-            poses = self.at_times(P, par, self.dense_times_s).poses
+            at = self.at_times(P, par, self.dense_times_s)
             callback = SceneDistanceCallback("stabilization_dense_distance", self.scene,
-                                             [*self.scenario.robot.body_names, TARGET_BODY], len(poses))
+                                             [*self.scenario.robot.body_names, TARGET_BODY], len(at.poses))
             # the callback object must outlive the Function that calls it
-            self._dense_clearance = ca.Function("stabilization_dense_distances", [P, par],
-                                                [callback(ca.vertcat(*poses))]), callback
-        return self._dense_clearance[0]
+            self._dense = ca.Function("stabilization_dense", [P, par],
+                                      [at.torques, callback(ca.vertcat(*at.poses))]), callback
+        return self._dense[0]
 
     @property
     def dense_times_s(self) -> Array:
-        """The instants [s into the phase] :meth:`dense_torques` evaluates: DENSE_FACTOR times as many as the via
+        """The instants [s into the phase] :meth:`dense_samples` evaluates: DENSE_FACTOR times as many as the via
         points, evenly spaced, and the via points."""
         uniform = np.linspace(0.0, self.scenario.phases.stabilization_s, DENSE_FACTOR * self.k + 1)
         return np.union1d(uniform, self.via_times_s)

@@ -24,7 +24,15 @@ from planner.model.rotation import quat_to_matrix
 from planner.nlp.outcome import SolveOutcome
 from planner.nlp.phase_spline import stabilization_vertices
 from planner.phases import stabilization_solve
-from planner.phases.between_via_points import AS_SOLVED, CLEARANCE_PAD_M, TORQUE_MARGIN, ViaPointBounds
+from planner.phases.between_via_points import (
+    AS_SOLVED,
+    CLEARANCE_PAD_M,
+    TORQUE_MARGIN,
+    BetweenViaPoints,
+    ViaPointBounds,
+    tightened,
+    within_limits,
+)
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
@@ -252,7 +260,7 @@ def test_the_dense_torques_hold_the_nlps_own_at_its_via_points(problem, grasp):
     T = problem.scenario.phases.stabilization_s
     times = np.union1d(np.linspace(0.0, T, DENSE_FACTOR * problem.k + 1), problem.via_times_s)
     np.testing.assert_array_equal(problem.dense_times_s, times)
-    dense = np.asarray(problem.dense_torques()(P, par)).reshape(-1, 3)
+    dense = np.asarray(problem.dense_samples()(P, par)[0]).reshape(-1, 3)
     assert dense.shape[0] == len(times)
     rows = [int(np.argmin(np.abs(times - t))) for t in problem.via_times_s]
     atol = 1e-6 * max(1.0, np.abs(at_via).max())
@@ -276,11 +284,8 @@ class _BetweenStandIn:
     def parameters(self, grasp):
         return self.problem.parameters(grasp)
 
-    def dense_torques(self):
-        return lambda P, par: np.array([self.peaks.pop(0), 0.0, 0.0])
-
-    def dense_distances(self):
-        return lambda P, par: np.asarray(self.distances.pop(0))
+    def dense_samples(self):
+        return lambda P, par: (np.array([self.peaks.pop(0), 0.0, 0.0]), np.asarray(self.distances.pop(0)))
 
 
 def _recording_resolve(bounds_seen: list):
@@ -397,11 +402,11 @@ def test_a_failing_stabilization_answers_with_its_least_violating_iterate(proble
 
 
 def test_the_dense_distances_at_the_via_points_are_the_nlps_own(problem, grasp):
-    """The dense clearance function, sampled at the via points (the dense instants include them), gives the NLP's own
+    """The dense samples' distances, sampled at the via points (the dense instants include them), gives the NLP's own
     constraint distances there, pair by pair: the same engine, the same layout (point-major), the same instants."""
     par = problem.parameters(grasp)
     params = problem.initial_params(grasp)
-    dense = np.asarray(problem.dense_distances()(params, par)).reshape(len(problem.dense_times_s), -1)
+    dense = np.asarray(problem.dense_samples()(params, par)[1]).reshape(len(problem.dense_times_s), -1)
     at_via = np.asarray(problem.outputs(params, par)[2]).reshape(problem.k, -1)
     rows = [int(np.argmin(np.abs(problem.dense_times_s - t))) for t in problem.via_times_s]
     np.testing.assert_allclose(problem.dense_times_s[rows], problem.via_times_s, atol=1e-9)
@@ -425,3 +430,21 @@ def test_tightened_bounds_raise_only_their_pairs_rows_at_every_via_point_and_sca
     as_solved = AS_SOLVED.applied(problem)
     np.testing.assert_array_equal(as_solved[0], problem.lbg)
     assert as_solved[0] is not problem.lbg  # a copy: the problem's own bounds are never changed
+
+
+@pytest.mark.parametrize(("torque_limit", "peak", "clearance_over_margin_m", "holds"), [
+    (10.0, 10.0, 0.0, True),  # touching both limits exactly: within them
+    (10.0, 10.0 + 1e-9, 0.0, False),  # the torque just over
+    (10.0, 10.0, -1e-9, False),  # a pair just inside the margin
+    (np.inf, 1e6, 0.0, True),  # no torque limit: any torque, and the margin still judged
+    (np.inf, 1e6, -1e-9, False),
+])
+def test_within_limits_at_and_just_past_each_limit(problem, torque_limit, peak, clearance_over_margin_m, holds):
+    stand_in = _BetweenStandIn(problem, [])
+    stand_in.torque_limit = torque_limit
+    margin = problem.scenario.limits.collision_margin_m
+    seen = BetweenViaPoints(peak, np.array([0.3, margin + clearance_over_margin_m]))
+    assert within_limits(stand_in, seen) is holds
+    # within the limits but short of the pad: tightened (a re-solve), never a torque scale without an overshoot
+    tighter = tightened(stand_in, AS_SOLVED, seen)
+    assert tighter is not None and (tighter.torque_scale < 1.0) is (peak > torque_limit)
