@@ -23,7 +23,8 @@ The full run refines every query state whose interpolated plan fails verificatio
 (a process still running 30 s past it is killed), and the same states through ``lutgen query`` on the tables of
 ``--coverage-tables`` (default ``tables/``): up to 2 × 80 runs of up to 100 s, hours on one core.
 Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``. After building a
-table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II_flat_spin``.
+table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II_flat_spin``. The same states planned
+with each scenario's variant ``configs/scenarios/<scenario>_NAME.toml``: ``--coverage-variant NAME`` (e.g. ``wide``).
 
 ``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
 ``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget
@@ -32,8 +33,8 @@ table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II
 optima again: ``--optimal-optima EARLIER.json`` (an earlier ``--out`` of the same seed and scenario).
 
 ``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many
-no meeting time brings within the arm's reach, at the scenario's settings and with a wider base-offset box or a
-longer window.
+no meeting time brings within the arm's reach, at the scenario's settings and with two wider base-offset boxes (the
+second the ``*_wide`` variants') or a longer window.
 
 ``carry`` (issue 20) plans the coverage section's seeded states cold in process (default kinds: the two general
 tumbles) and re-verifies each feasible plan at states displaced in attitude (2.5-45°) and body rate (0.25-2 °/s):
@@ -58,6 +59,7 @@ from bench_sections.builds import builds
 from bench_sections.carry import carry
 from bench_sections.common import (
     ROOT,
+    SCENARIOS,
     CoverageSettings,
     Settings,
     coverage_settings,
@@ -108,6 +110,17 @@ def coverage_kinds(text: str) -> tuple[str, ...]:
     return names
 
 
+def coverage_variant(text: str) -> str:
+    """An argparse type: a scenario variant suffix ``NAME`` for which both ``scenario_I_NAME.toml`` and
+    ``scenario_II_NAME.toml`` exist in ``configs/scenarios``."""
+    name = text.strip()
+    missing = [f"{k}_{name}.toml" for k in dict.fromkeys(k.scenario for k in KINDS)
+               if not name or not (SCENARIOS / f"{k}_{name}.toml").is_file()]
+    if missing:
+        raise argparse.ArgumentTypeError(f"no scenario {', '.join(missing)} in configs/scenarios")
+    return name
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -134,6 +147,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                          "and grid kind they were built for (default: tables/; --trim: tests/data)")
     ap.add_argument("--coverage-kinds", type=coverage_kinds, default=None, metavar="KIND[,KIND]",
                     help=f"coverage: only these kinds ({', '.join(k.name for k in KINDS)}; default all)")
+    ap.add_argument("--coverage-variant", type=coverage_variant, default=None, metavar="NAME",
+                    help="coverage: plan (and match tables) with each scenario's variant "
+                         "configs/scenarios/<scenario>_NAME.toml, e.g. wide (the chaser free within ±2 m); the same "
+                         "seeded states")
     ap.add_argument("--coverage-queries-only", action="store_true",
                     help="coverage: the queries on the tables alone, no cold plans (e.g. after building a table)")
     ap.add_argument("--optimal-table", type=Path, default=None, metavar="PATH",
@@ -199,7 +216,7 @@ def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> d
 def coverage_settings_of(args: argparse.Namespace) -> CoverageSettings:
     """The coverage section's settings from the command line's options."""
     return coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables,
-                             args.coverage_kinds, not args.coverage_queries_only)
+                             args.coverage_kinds, not args.coverage_queries_only, args.coverage_variant)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -454,6 +454,39 @@ def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):
         bench.parse_args(["--coverage-kinds", "scenario_III_flat_spin"])
 
 
+def test_a_variant_plans_the_same_states_with_its_own_scenario_files(monkeypatch):
+    import bench
+    from bench_sections.common import settings_for
+
+    commands: list[list[str]] = []
+
+    def fake_run_all(jobs, settings):
+        commands.extend(jobs)
+        return [{"feasible_on_time": False, "wall_s": 1.0, "exit_code": 2, "reasons": [{"reason": "out of reach"}]}
+                for _ in jobs]
+
+    monkeypatch.setattr(coverage, "run_all", fake_run_all)
+    base = ["--coverage-kinds", "scenario_I_tumble,scenario_II_flat_spin", "--coverage-states", "2",
+            "--coverage-tables", str(ROOT / "tests" / "data")]
+    runs = {}
+    for variant in ([], ["--coverage-variant", "wide"]):
+        commands.clear()
+        args = bench.parse_args(base + variant)
+        runs[bool(variant)] = (coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0,
+                                                               bench.coverage_settings_of(args))), list(commands))
+    (bundled, bundled_cmds), (wide, wide_cmds) = runs[False], runs[True]
+    # in the order of KINDS: scenario II's flat spins, then scenario I's tumbles
+    assert [c[1] for c in wide_cmds if c[0] == "plan"] == ["configs/scenarios/scenario_II_wide.toml"] * 2 + [
+        "configs/scenarios/scenario_I_wide.toml"] * 2
+    assert [c[2:] for c in wide_cmds] == [c[2:] for c in bundled_cmds if c[0] == "plan"]  # the same seeded states
+    assert wide["variant"] == "wide" and bundled["variant"] is None
+    # the golden table answers the bundled scenario II, not its variant: no query with the variant
+    assert wide["queries"]["scenario_II_flat_spin"]["skipped"].startswith("no table")
+    assert any(c[0] == "query" for c in bundled_cmds)
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--coverage-variant", "energyy"])  # scenario_I_energyy.toml does not exist
+
+
 def test_tables_are_matched_by_scenario_and_grid_kind(tmp_path, monkeypatch):
     found, lines = coverage_tables.find_tables(ROOT / "tests" / "data", [(k.name, k.scenario, k.motion)
                                                                          for k in coverage.KINDS])
@@ -475,7 +508,7 @@ def test_reach_counts_each_what_if_over_the_coverage_states(bench):
     """The reach section scans the coverage section's states (the same kinds and count) under every what-if, and each
     count is the length of its list of state indices."""
     r = bench["reach"]
-    assert r["what_ifs"][0] == "scenario" and len(r["what_ifs"]) == 3
+    assert r["what_ifs"][0] == "scenario" and len(r["what_ifs"]) == 4
     kinds = [k for k in r if k.startswith("scenario_")]
     assert kinds == list(bench["coverage"]["plans"].keys() & set(kinds)) and kinds
     for kind in kinds:
@@ -483,6 +516,15 @@ def test_reach_counts_each_what_if_over_the_coverage_states(bench):
             e = r[kind][name]
             assert e["states"] == r["states_per_kind"] and e["out_of_reach"] == len(e["indices"])
             assert all(0 <= i < e["states"] for i in e["indices"])
+
+
+def test_the_reach_what_if_of_a_2_m_box_is_the_wide_variants_box():
+    from bench_sections.common import load_scenario_named
+    from bench_sections.reach import WHAT_IFS
+
+    for name in ("scenario_I", "scenario_II"):
+        widened = WHAT_IFS["base_offset_x_-2_2_z_-2_2"](load_scenario_named(name))
+        assert widened.base_offset_bounds_m == load_scenario_named(f"{name}_wide").base_offset_bounds_m
 
 
 def test_carry_measures_every_displacement_of_the_coverage_kinds(bench):

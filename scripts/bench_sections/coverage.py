@@ -91,9 +91,9 @@ def run_all(jobs: list[list[str]], settings: Settings) -> list[dict[str, Any]]:
         return list(pool.map(one, jobs))
 
 
-def plan_args(kind: Kind, state: EnvelopeState, budget_s: float) -> list[str]:
+def plan_args(scenario: str, state: EnvelopeState, budget_s: float) -> list[str]:
     budget = ["--budget-s", f"{budget_s:g}"] if plan_takes_budget() else []
-    return ["plan", f"configs/scenarios/{kind.scenario}.toml", *state_args(state), *budget]
+    return ["plan", f"configs/scenarios/{scenario}.toml", *state_args(state), *budget]
 
 
 def query_args(table: str, state: EnvelopeState, budget_s: float) -> list[str]:
@@ -134,7 +134,7 @@ def bars(plans: dict[str, Any], queries: dict[str, Any], states: int) -> dict[st
 def coverage(settings: Settings) -> dict[str, Any]:
     """The whole section."""
     c = settings.coverage
-    tables, table_notes = find_tables(c.tables, [(k.name, k.scenario, k.motion) for k in KINDS])
+    tables, table_notes = find_tables(c.tables, [(k.name, c.scenario_of(k.scenario), k.motion) for k in KINDS])
     plans: dict[str, Any] = {}
     queries: dict[str, Any] = {"tables_dir": relative(c.tables), "tables": table_notes}
     for kind in KINDS:
@@ -143,7 +143,8 @@ def coverage(settings: Settings) -> dict[str, Any]:
             plans[kind.name] = queries[kind.name] = skipped(reason, SUMMARY_KEYS)
             continue
         states = kind_states(kind, c.states, settings.seed)
-        plans[kind.name] = (summary(run_all([plan_args(kind, s, c.budget_s) for s in states], settings)) if c.plans
+        plans[kind.name] = (summary(run_all([plan_args(c.scenario_of(kind.scenario), s, c.budget_s) for s in states],
+                                            settings)) if c.plans
                             else skipped("--coverage-queries-only", SUMMARY_KEYS))
         table = tables.get(kind.name)
         if table is None:
@@ -152,7 +153,8 @@ def coverage(settings: Settings) -> dict[str, Any]:
         queries[kind.name] = {"table": relative(table),
                               **summary(run_all([query_args(cli_path(table), s, c.budget_s) for s in states],
                                                 settings))}
-    return {"states_per_kind": c.states, "seed": [settings.seed, SEED_SALT], "budget_s": c.budget_s,
+    return {"states_per_kind": c.states, "seed": [settings.seed, SEED_SALT], "variant": c.variant,
+            "budget_s": c.budget_s,
             "kill_after_s": c.budget_s + c.kill_margin_s, "jobs": c.jobs, "plan_budget_option": plan_takes_budget(),
             "envelope": {"flat_spin": f"spin about the target's major axis (from its inertia) along (cos α, 0, sin α) "
                                       f"in O, α and phase uniform over the full turn, |ω| uniform in "

@@ -1,6 +1,6 @@
 """``reach`` (issue 20): which of the coverage section's seeded states no meeting time brings within the arm's reach
-— the scan of meeting times alone (seconds a state), at the scenario's own settings and under two what-ifs: a wider
-base-offset box θ_b(0) and a longer start-delay window.
+— the scan of meeting times alone (seconds a state), at the scenario's own settings and under three what-ifs: two
+wider base-offset boxes θ_b(0) (the second the ``*_wide`` variants') and a longer start-delay window.
 
 An out-of-reach state is refused by ``lutgen plan`` at once (``out of reach: …``, exit 2): its failure is the
 scenario's geometry (the handle never faces the chaser within reach from the admissible base offsets during the
@@ -21,6 +21,8 @@ from bench_sections.coverage import KINDS, kind_states
 WHAT_IFS = {  # name → how the scenario is changed
     "scenario": lambda sc: sc,
     "base_offset_x_-1_2_z_-2_2": lambda sc: replace(sc, base_offset_bounds_m=((-1.0, 2.0), (-2.0, 2.0))),
+    # the box of the bundled ``*_wide`` scenario variants
+    "base_offset_x_-2_2_z_-2_2": lambda sc: replace(sc, base_offset_bounds_m=((-2.0, 2.0), (-2.0, 2.0))),
     "start_delay_window_180_s": lambda sc: replace(sc, phases=replace(sc.phases, max_start_delay_s=180.0)),
 }
 

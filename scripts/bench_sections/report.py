@@ -126,7 +126,9 @@ def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:
         value = "n/a" if bar["value"] is None else format(bar["value"], ".3g")
         rows.append((f"bar {name}", f"{value} ({op} {bar['bar']:g}): {verdict}"
                                     f"{'' if bar['enough_states'] else ' (fewer than 20 states per kind)'}"))
-    return f"coverage ({c['states_per_kind']} states per kind, budget {c['budget_s']:g} s, {c['jobs']} at a time)", rows
+    variant = f", scenario variant {c['variant']}" if c.get("variant") else ""
+    return (f"coverage ({c['states_per_kind']} states per kind, budget {c['budget_s']:g} s, {c['jobs']} at a time"
+            f"{variant})", rows)
 
 
 def _optimal(o: dict[str, Any]) -> tuple[str, list[Row]]:

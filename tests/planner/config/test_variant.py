@@ -50,6 +50,19 @@ def _copy_pair(tmp_path: Path, variant_text: str) -> Path:
     return path
 
 
+@pytest.mark.parametrize("base_name", ["scenario_I", "scenario_II"])
+def test_the_wide_variant_is_its_base_but_for_the_name_and_a_base_offset_box_of_2_m(base_name):
+    v = load_scenario(SCENARIOS / f"{base_name}_wide.toml")
+    base = load_scenario(SCENARIOS / f"{base_name}.toml")
+    assert v.name == f"{base_name}_wide" and base.base_offset_bounds_m == ((-1.0, 1.0), (-1.0, 1.0))
+    assert v.base_offset_bounds_m == ((-2.0, 2.0), (-2.0, 2.0))
+    # the [robot] table is merged key by key: the start configuration and the guess stay the base's
+    np.testing.assert_equal(v.base_offset_guess_m, base.base_offset_guess_m)
+    np.testing.assert_equal(v.q_initial, base.q_initial)
+    assert v.limits == base.limits and v.phases == base.phases and v.costs == base.costs
+    assert table_hash(v) != table_hash(base)
+
+
 def test_a_change_of_the_base_makes_the_variants_tables_stale(tmp_path):
     path = _copy_pair(tmp_path, 'extends = "scenario_I.toml"\nname = "v"\n[costs]\napproach_energy = 2.0\n')
     before = table_hash(load_scenario(path))
