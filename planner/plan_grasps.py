@@ -30,6 +30,7 @@ from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachSolution
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
 from planner.phases.approach_solve import COLD_START_ITERATIONS, TriedGrasp, solve_approach, solve_approach_from_base
+from planner.phases.approach_start import base_offset_grid
 from planner.phases.stabilization import StabilizationSolution
 from planner.phases.tracking import TrackingResult
 from planner.phases.tracking_clearance import tracking_dip
@@ -92,9 +93,7 @@ def untightened_speed_scale() -> NDArray[np.float64]:
 def other_base_offsets(scenario: Scenario, first_m: Array) -> list[Array]:
     """θ_b(0) [m] (x, z) of the grid over the scenario's base-offset box, farthest from ``first_m`` first (ties: in
     grid order), those within :data:`BASE_OFFSET_GAP_M` of it left out."""
-    (x_lo, x_hi), (z_lo, z_hi) = scenario.base_offset_bounds_m
-    grid = [np.array([x, z]) for x in np.unique(np.linspace(x_lo, x_hi, BASE_OFFSETS_PER_AXIS))
-            for z in np.unique(np.linspace(z_lo, z_hi, BASE_OFFSETS_PER_AXIS))]
+    grid = base_offset_grid(scenario, BASE_OFFSETS_PER_AXIS)
     away = [b for b in grid if np.linalg.norm(b - first_m) >= BASE_OFFSET_GAP_M]
     return sorted(away, key=lambda b: -float(np.linalg.norm(b - first_m)))
 

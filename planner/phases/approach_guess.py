@@ -28,7 +28,7 @@ from planner.nlp.costs import manipulability
 from planner.nlp.phase_spline import fit_approach_params
 from planner.phases.approach_drift import correct_for_base_drift, ik_jacobian
 from planner.phases.approach_ik import PoseIK
-from planner.phases.approach_start import StartClearance
+from planner.phases.approach_start import StartClearance, starts_elsewhere_in_box
 from planner.phases.pregrasp_pose import at_own_angle, free_axis_turn, pregrasp_position
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
@@ -38,6 +38,10 @@ Array = NDArray[np.float64]
 DELAY_STEP_S = 2.0  # candidate meeting times are this far apart
 IK_SEED = 20261122  # fixed: same inputs, same guesses
 IK_EXTRA_STARTS = 4
+# a scan whose IK reached no meeting time from near the base-offset guess scans again, starting also from each point of
+# this square grid over the base-offset box: started near the guess alone, a scenario I flat spin answered out of reach
+# planned feasible in 5.8 s with the guess moved to (1, 0) m
+BASE_STARTS_PER_AXIS = 3
 MIN_SEPARATION_S = 6.0  # alternative starts differ at least this much in meeting time
 # node-to-node mean joint speed ≤ this × the limit, per tracking segment: the first segment follows the
 # quintic blend, whose peak rate is 15/8 of its mean; later ones track the grasp frame almost uniformly
@@ -126,6 +130,9 @@ class _Scan:
     state: TargetState
     start: StartClearance  # θ_in's clearance from the target at the approach's start
     held_rad: float | None = None  # the angle about the free grasp axis the grasp frame is held at [rad]
+    # per other point of the base-offset box, the starts with the base there: a scan that reached no meeting time
+    # from near the guess scans again with them
+    base_starts: tuple[list[Array], ...] = ()
 
 
 def initial_guesses(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState,
@@ -177,12 +184,15 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     extra_starts = [np.concatenate([rng.uniform(0.6 * robot.q_min, 0.6 * robot.q_max), sc.base_offset_guess_m])
                     for _ in range(IK_EXTRA_STARTS)]
     motion, scene = sc.target.motion(state, _horizon_s(sc)), build_scene(sc)
+    x_home = np.concatenate([sc.q_initial, sc.base_offset_guess_m])
     ctx = _Scan(sc, motion, fk_function(robot), scene, PoseIK.shared(sc),
                 np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)]),
-                np.concatenate([sc.q_initial, sc.base_offset_guess_m]), extra_starts, state,
-                StartClearance(sc, scene, motion))
+                x_home, extra_starts, state, StartClearance(sc, scene, motion))
     times = [float(t) for t in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S)]
     candidates, outcomes = _scan_window(ctx, times)
+    if not candidates:  # before answering out of reach, the IK starts from the rest of the base-offset box too
+        elsewhere = starts_elsewhere_in_box(sc, [x_home, *extra_starts], BASE_STARTS_PER_AXIS)
+        candidates, outcomes = _scan_window(replace(ctx, base_starts=tuple(elsewhere)), times)
     if not candidates:
         # nothing reachable: hand the NLP the initial configuration and let it report infeasibility
         candidates.append(_Candidate(-np.inf, -np.inf, [ctx.x_home] * (1 + len(TRACKING_NODES)), 0.0, None, ctx))
@@ -226,18 +236,33 @@ def _scan_window(ctx: _Scan, times_s: list[float]) -> tuple[list[_Candidate], li
 
 def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, list[Array]]:
     """The pre-grasp and tracking-node configurations ``[q, b_x, b_z]`` for meeting at ``tau`` + t_f¹, as far
-    as they were solved (all of them when the outcome is :attr:`MeetingOutcome.REACHED`)."""
+    as they were solved (all of them when the outcome is :attr:`MeetingOutcome.REACHED`). Should the starts near the
+    guess not lead to the tracking poses, the pre-grasp is solved again from each other point of the base-offset box
+    (``ctx.base_starts``), the base pulled toward that point, and kept only if its tracking poses are solved."""
     sc, ik = ctx.sc, ctx.ik
     R_g, p_g = (a[0] for a in ctx.motion.grasp_pose(tau + sc.phases.approach_s))
     p_pre = pregrasp_position(sc, R_g, p_g)
     if ik.out_of_reach(p_pre, None, (np.zeros(3), np.eye(3))):
         return MeetingOutcome.BEYOND_REACH, []
     x_pre = ik.solve(p_pre, R_g, ctx.S_pre, [x_prev, ctx.x_home, *ctx.extra_starts])
-    if x_pre is None:
-        return MeetingOutcome.IK_UNSOLVED, []
+    first = (MeetingOutcome.IK_UNSOLVED, []) if x_pre is None else _tracking_from(ctx, tau, R_g, p_g, x_pre)
+    if first[0] is MeetingOutcome.REACHED:
+        return first
+    for starts in ctx.base_starts:
+        x_pre = ik.solve(p_pre, R_g, ctx.S_pre, starts, own_base_from=0)
+        elsewhere = None if x_pre is None else _tracking_from(ctx, tau, R_g, p_g, x_pre)
+        if elsewhere is not None and elsewhere[0] is MeetingOutcome.REACHED:
+            return elsewhere
+    return first
+
+
+def _tracking_from(ctx: _Scan, tau: float, R_g: Array, p_g: Array, x_pre: Array) -> tuple[MeetingOutcome,
+                                                                                         list[Array]]:
+    """The tracking poses from the pre-grasp ``x_pre``, turned first to the angle the IK chose about a free grasp
+    axis (:func:`_tracking_poses_from`)."""
     firsts = [x_pre]
     if ctx.held_rad is None:  # the IK chose the angle about a free axis: back off along the frame at that angle
-        turned = at_own_angle(sc, ik, R_g, p_g, x_pre, np.asarray(ctx.fk(x_pre[:7])[-2]))
+        turned = at_own_angle(ctx.sc, ctx.ik, R_g, p_g, x_pre, np.asarray(ctx.fk(x_pre[:7])[-2]))
         firsts = [turned, x_pre] if turned is not x_pre else firsts
     for x in firsts:  # should the tracking poses fail from the turned pre-grasp, the NLP still starts near the IK's
         outcome, configs = _tracking_poses_from(ctx, tau, R_g, x)

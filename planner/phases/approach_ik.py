@@ -21,7 +21,7 @@ from planner.nlp.compiled import compiled
 Array = NDArray[np.float64]
 
 REACH_TOLERANCE = 1e-3  # pose residual [m, rad] below which a pose counts as reachable
-REGULARISATION = 0.02  # weight pulling the IK toward θ_in and the base-offset guess [1/rad, 1/m]
+REGULARISATION = 0.02  # weight pulling the IK toward θ_in and a base-offset anchor [1/rad, 1/m]
 # the polish keeps a little of it: with none, the redundant arm and the base drift to their bounds
 POLISH_REGULARISATION = 2e-3
 # a start whose regularised solve leaves a larger pose residual [m, rad] is not polished: the polish does not
@@ -30,7 +30,7 @@ POLISH_WORTHWHILE_ERROR = 0.1
 
 
 def _ik_residual_function(scenario: Scenario) -> ca.Function:
-    """``(x = [q, b_x, b_z], p_goal, R_goal, S) -> (residual, jacobian)`` of a pose IK with the base frozen.
+    """``(x = [q, b_x, b_z], p_goal, R_goal, S, …, base_anchor) -> (residual, jacobian)`` of a pose IK.
 
     Orientation residual ``(R_ee − R_goal) S``: S = I matches the whole orientation, S = [a 0 0] only
     the free axis a. Smooth, and free of the spurious minima of sin-based errors at large angles.
@@ -45,13 +45,14 @@ def _ik_residual_function(scenario: Scenario) -> ca.Function:
     dR = ca.SX.sym("drift_R", 3, 3)
     base_given = ca.SX.sym("base_given", 2)  # used instead of x[-2:] when fix_base = 1
     fix_base = ca.SX.sym("fix_base")
+    base_anchor = ca.SX.sym("base_anchor", 2)  # where the regularisation pulls the base [m]
     base = fix_base * base_given + (1 - fix_base) * x[-2:]
     out = fk_function(sc.robot)(x[:-2])
     p_ee = ca.vertcat(base[0], 0.0, base[1]) + dp + ca.mtimes(dR, out[-1])
     rot = ca.reshape(ca.mtimes(ca.mtimes(dR, out[-2]) - R_goal, S), 9, 1)
-    reg = weight * ca.vertcat(x[:-2] - ca.DM(sc.q_initial), x[-2:] - ca.DM(sc.base_offset_guess_m))
+    reg = weight * ca.vertcat(x[:-2] - ca.DM(sc.q_initial), x[-2:] - base_anchor)
     r = ca.vertcat(p_ee - p_goal, rot, reg)
-    return ca.Function("pose_ik", [x, p_goal, R_goal, S, weight, dp, dR, base_given, fix_base],
+    return ca.Function("pose_ik", [x, p_goal, R_goal, S, weight, dp, dR, base_given, fix_base, base_anchor],
                        [r, ca.jacobian(r, x)])
 
 
@@ -130,11 +131,11 @@ def _ik_bounds(scenario: Scenario) -> tuple[Array, Array]:
 
 def _ik_key(scenario: Scenario) -> str:
     """A digest of everything a :class:`PoseIK` of ``scenario`` is made of: the residual's expression graph
-    (robot, θ_in, base-offset guess), the bounds and the reach test's data."""
+    (robot, θ_in), the bounds, the reach test's data and the base-offset guess."""
     rob = scenario.robot
     parts = [_ik_residual_function(scenario).serialize().encode(),
              *(np.asarray(a, dtype=float).tobytes() for a in (*_ik_bounds(scenario), rob.p_base_joint1_m,
-                                                               rob.reach_from_joint1_m))]
+                                                               rob.reach_from_joint1_m, scenario.base_offset_guess_m))]
     return hashlib.sha256(b"\0".join(parts)).hexdigest()
 
 
@@ -163,10 +164,11 @@ class PoseIK:
         self.lm = _levenberg_marquardt_function(self.fn, self.lo, self.hi, LM_ITERATIONS)
         self.p_joint1 = scenario.robot.p_base_joint1_m
         self.reach_m = scenario.robot.reach_from_joint1_m
+        self.base_guess_m = np.asarray(scenario.base_offset_guess_m, dtype=float)
 
     @classmethod
     def shared(cls, scenario: Scenario) -> PoseIK:
-        """The PoseIK of ``scenario``, built once per process for each robot, θ_in, base-offset guess and bounds.
+        """The PoseIK of ``scenario``, built once per process for each robot, θ_in and bounds.
 
         Building the Levenberg-Marquardt Function costs a sizeable part of a scan; a PoseIK holds no
         state between solves, so every scan of the same problem can share one.
@@ -197,23 +199,29 @@ class PoseIK:
         gap = rel - np.clip(rel, lo, hi)
         return bool(np.linalg.norm(gap) > self.reach_m + REACH_TOLERANCE)
 
-    def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array],
-              base_fixed: Array | None = None, drift: tuple[Array, Array] | None = None) -> Array | None:
+    def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array], base_fixed: Array | None = None,
+              drift: tuple[Array, Array] | None = None, own_base_from: int | None = None) -> Array | None:
+        """``[q, b_x, b_z]`` reaching the pose from the first of ``starts`` that does, None when none does. The
+        regularisation pulls the base toward the scenario's base-offset guess, or, for the starts from index
+        ``own_base_from`` on, toward the start's own base (a start elsewhere in the box is not pulled back to the
+        guess, which can leave a pose reachable only there just outside REACH_TOLERANCE)."""
         dp, dR = drift if drift is not None else (np.zeros(3), np.eye(3))
         fixed_base, fix = (np.zeros(2), 0.0) if base_fixed is None else (np.asarray(base_fixed, dtype=float), 1.0)
         if self.out_of_reach(p_goal, base_fixed, (dp, dR)):
             return None
 
-        def solve_from(x0: Array, weight: float) -> tuple[Array, float]:
-            x, error = self.lm(x0, pack_ik_parameters(p_goal, R_goal, S, weight, dp, dR, fixed_base, fix))
+        def solve_from(x0: Array, weight: float, anchor: Array) -> tuple[Array, float]:
+            x, error = self.lm(x0, pack_ik_parameters(p_goal, R_goal, S, weight, dp, dR, fixed_base, fix, anchor))
             return np.asarray(x).ravel(), float(error)
 
-        for x0 in starts:
+        for index, x0 in enumerate(starts):
+            own = own_base_from is not None and index >= own_base_from
+            anchor = np.asarray(x0[-2:], dtype=float) if own else self.base_guess_m
             # regularised solve (stays near θ_in), then a polish that removes most of the regularisation's bias
-            x, error = solve_from(x0, REGULARISATION)
+            x, error = solve_from(x0, REGULARISATION, anchor)
             if error > POLISH_WORTHWHILE_ERROR:
                 continue
-            x, error = solve_from(x, POLISH_REGULARISATION)
+            x, error = solve_from(x, POLISH_REGULARISATION, anchor)
             if error < REACH_TOLERANCE:
                 if base_fixed is not None:
                     x = np.concatenate([x[:-2], base_fixed])

@@ -21,6 +21,21 @@ from planner.model.target import TargetMotion
 Array = NDArray[np.float64]
 
 
+def base_offset_grid(scenario: Scenario, per_axis: int) -> list[Array]:
+    """θ_b(0) [m] (x, z) at ``per_axis`` evenly spaced values of each axis of the scenario's base-offset box, bounds
+    included, in grid order (x slowest)."""
+    (x_lo, x_hi), (z_lo, z_hi) = scenario.base_offset_bounds_m
+    return [np.array([x, z]) for x in np.unique(np.linspace(x_lo, x_hi, per_axis))
+            for z in np.unique(np.linspace(z_lo, z_hi, per_axis))]
+
+
+def starts_elsewhere_in_box(scenario: Scenario, starts: list[Array], per_axis: int) -> list[list[Array]]:
+    """For each point of :func:`base_offset_grid` but the scenario's base-offset guess, ``starts`` (``[q, b_x, b_z]``,
+    the base at the guess) with the base moved to that point [m]."""
+    return [[np.concatenate([x[:-2], b]) for x in starts] for b in base_offset_grid(scenario, per_axis)
+            if not np.allclose(b, scenario.base_offset_guess_m)]
+
+
 class StartClearance:
     """θ_in's clearance from the target at the approach's start, for one target motion, at any base offset."""
 

@@ -97,7 +97,8 @@ def test_compiled_levenberg_marquardt_matches_scipy_on_the_scan_ik():
     rng = np.random.default_rng(11)
 
     def both(x0: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray, tuple]:
-        args = (p_goal, R_goal, np.eye(3), weight, np.zeros(3), np.eye(3), np.zeros(2), 0.0)  # no drift, base free
+        # no drift, base free, pulled toward the guess
+        args = (p_goal, R_goal, np.eye(3), weight, np.zeros(3), np.eye(3), np.zeros(2), 0.0, sc.base_offset_guess_m)
         x_lm, _ = ik.lm(x0, pack_ik_parameters(*args))
         ref = least_squares(lambda x: np.asarray(ik.fn(x, *args)[0]).ravel(), x0,
                             jac=lambda x: np.asarray(ik.fn(x, *args)[1]), bounds=(ik.lo, ik.hi),
@@ -178,7 +179,7 @@ def test_compiled_levenberg_marquardt_loop_equals_the_expanded_one_bit_for_bit(m
         out = fk(rng.uniform(0.6 * sc.robot.q_min, 0.6 * sc.robot.q_max))
         drift = (rng.normal(scale=0.02, size=3), quat_to_matrix([1.0, *rng.normal(scale=0.02, size=3)]))
         p = pack_ik_parameters(np.asarray(out[-1]).ravel(), np.asarray(out[-2]), np.eye(3), 0.02, *drift,
-                               sc.base_offset_guess_m, float(k % 2))
+                               sc.base_offset_guess_m, float(k % 2), sc.base_offset_guess_m)
         x0 = np.clip(np.concatenate([sc.q_initial, sc.base_offset_guess_m]) + rng.normal(scale=0.3, size=9),
                      fast.lo, fast.hi)
         for a, b in zip(fast.lm(x0, p), expanded.lm(x0, p), strict=True):
