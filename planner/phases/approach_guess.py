@@ -249,9 +249,11 @@ def _poses_at(ctx: _Scan, tau: float, x_prev: Array) -> tuple[MeetingOutcome, li
     if first[0] is MeetingOutcome.REACHED:
         return first
     for starts in ctx.base_starts:
-        x_pre = ik.solve(p_pre, R_g, ctx.S_pre, starts, own_base_from=0)
-        elsewhere = None if x_pre is None else _tracking_from(ctx, tau, R_g, p_g, x_pre)
-        if elsewhere is not None and elsewhere[0] is MeetingOutcome.REACHED:
+        x_pre = ik.solve(p_pre, R_g, ctx.S_pre, starts, own_base=True)
+        if x_pre is None:
+            continue
+        elsewhere = _tracking_from(ctx, tau, R_g, p_g, x_pre)
+        if elsewhere[0] is MeetingOutcome.REACHED:
             return elsewhere
     return first
 

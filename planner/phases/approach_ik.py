@@ -200,11 +200,11 @@ class PoseIK:
         return bool(np.linalg.norm(gap) > self.reach_m + REACH_TOLERANCE)
 
     def solve(self, p_goal: Array, R_goal: Array, S: Array, starts: list[Array], base_fixed: Array | None = None,
-              drift: tuple[Array, Array] | None = None, own_base_from: int | None = None) -> Array | None:
+              drift: tuple[Array, Array] | None = None, own_base: bool = False) -> Array | None:
         """``[q, b_x, b_z]`` reaching the pose from the first of ``starts`` that does, None when none does. The
-        regularisation pulls the base toward the scenario's base-offset guess, or, for the starts from index
-        ``own_base_from`` on, toward the start's own base (a start elsewhere in the box is not pulled back to the
-        guess, which can leave a pose reachable only there just outside REACH_TOLERANCE)."""
+        regularisation pulls the base toward the scenario's base-offset guess or, with ``own_base``, toward each
+        start's own base (a start elsewhere in the box is not pulled back to the guess, which can leave a pose
+        reachable only there just outside REACH_TOLERANCE)."""
         dp, dR = drift if drift is not None else (np.zeros(3), np.eye(3))
         fixed_base, fix = (np.zeros(2), 0.0) if base_fixed is None else (np.asarray(base_fixed, dtype=float), 1.0)
         if self.out_of_reach(p_goal, base_fixed, (dp, dR)):
@@ -214,9 +214,8 @@ class PoseIK:
             x, error = self.lm(x0, pack_ik_parameters(p_goal, R_goal, S, weight, dp, dR, fixed_base, fix, anchor))
             return np.asarray(x).ravel(), float(error)
 
-        for index, x0 in enumerate(starts):
-            own = own_base_from is not None and index >= own_base_from
-            anchor = np.asarray(x0[-2:], dtype=float) if own else self.base_guess_m
+        for x0 in starts:
+            anchor = np.asarray(x0[-2:], dtype=float) if own_base else self.base_guess_m
             # regularised solve (stays near θ_in), then a polish that removes most of the regularisation's bias
             x, error = solve_from(x0, REGULARISATION, anchor)
             if error > POLISH_WORTHWHILE_ERROR:

@@ -3,6 +3,7 @@ the box (``planner.phases.approach_guess``): "out of reach" must not be the verd
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -10,10 +11,11 @@ import pytest
 
 import planner.phases.approach_guess as approach_guess
 from planner.config.scenario import load_scenario
+from planner.model.robot import fk_function
 from planner.model.target_state import TargetState
 from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import BASE_STARTS_PER_AXIS, reach_scan
-from planner.phases.approach_ik import REGULARISATION, PoseIK, pack_ik_parameters
+from planner.phases.approach_ik import REGULARISATION, PoseIK
 from planner.phases.approach_start import base_offset_grid, starts_elsewhere_in_box
 
 SCENARIO_I = Path(__file__).resolve().parents[3] / "configs" / "scenarios" / "scenario_I.toml"
@@ -76,5 +78,50 @@ def test_the_ik_regularisation_pulls_the_base_toward_its_anchor(scenario_I):
         r = np.asarray(ik.fn(x, *args)[0]).ravel()
         np.testing.assert_allclose(r[-2:], REGULARISATION * (x[-2:] - anchor), rtol=0, atol=1e-15)
         rows.append(r)
-        assert ik.lm(x, pack_ik_parameters(*args))[0].shape[0] == x.size
     np.testing.assert_array_equal(rows[0][:-2], rows[1][:-2])
+
+
+def _pose_of(sc, q: np.ndarray, base_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    out = fk_function(sc.robot)(q)
+    return np.asarray(out[-1]).ravel() + np.array([base_m[0], 0.0, base_m[1]]), np.asarray(out[-2])
+
+
+def test_a_start_at_the_guess_solves_alike_anchored_at_the_guess_or_at_its_own_base(scenario_I):
+    """The degenerate case: a start whose base is the guess pulls toward the same point either way, bit for bit."""
+    sc, _ = scenario_I
+    ik = PoseIK(sc)
+    p, R = _pose_of(sc, sc.q_initial + 0.2, np.array([0.3, -0.2]))
+    start = np.concatenate([sc.q_initial, sc.base_offset_guess_m])
+    a, b = ik.solve(p, R, np.eye(3), [start]), ik.solve(p, R, np.eye(3), [start], own_base=True)
+    assert a is not None
+    np.testing.assert_array_equal(a, b)
+
+
+def test_a_start_elsewhere_keeps_its_base_nearer_when_anchored_at_it(scenario_I):
+    """A pose the arm reaches from many bases (redundant with the base free): anchored at its own base, a start at
+    (0.8, 0) m ends nearer it than pulled toward the guess (0, 0) m; both reach the pose."""
+    sc, _ = scenario_I
+    ik = PoseIK(sc)
+    p, R = _pose_of(sc, sc.q_initial + 0.2, np.array([0.4, 0.0]))
+    own_m = np.array([0.8, 0.0])
+    start = np.concatenate([sc.q_initial + 0.2, own_m])
+    pulled, kept = ik.solve(p, R, np.eye(3), [start]), ik.solve(p, R, np.eye(3), [start], own_base=True)
+    assert pulled is not None and kept is not None
+    assert np.linalg.norm(kept[-2:] - own_m) < np.linalg.norm(pulled[-2:] - own_m)
+    assert np.linalg.norm(pulled[-2:] - sc.base_offset_guess_m) < np.linalg.norm(kept[-2:] - sc.base_offset_guess_m)
+
+
+@pytest.mark.parametrize(("box", "guess", "groups"), [
+    (((-1.0, 1.0), (0.0, 0.0)), (0.0, 0.0), 2),   # z pinned: a line of 3 points, the guess one of them
+    (((-1.0, 1.0), (-1.0, 1.0)), (0.3, 0.0), 9),  # a guess off the grid: every grid point is elsewhere
+    (((0.0, 0.0), (0.0, 0.0)), (0.0, 0.0), 0),    # the box a point: nowhere else to start from
+])
+def test_the_grid_of_a_pinned_or_off_grid_box(scenario_I, box, guess, groups):
+    sc, _ = scenario_I
+    sc = dataclasses.replace(sc, base_offset_bounds_m=box, base_offset_guess_m=np.array(guess))
+    moved = starts_elsewhere_in_box(sc, [np.concatenate([sc.q_initial, guess])], BASE_STARTS_PER_AXIS)
+    assert len(moved) == groups
+    points = {tuple(g[0][-2:]) for g in moved}
+    assert len(points) == groups and tuple(guess) not in points
+    for x, z in points:
+        assert box[0][0] <= x <= box[0][1] and box[1][0] <= z <= box[1][1]
