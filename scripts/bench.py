@@ -34,7 +34,8 @@ optima again: ``--optimal-optima EARLIER.json`` (an earlier ``--out`` of the sam
 
 ``reach`` (issue 20) scans the coverage section's seeded states' meeting times only (seconds a state): how many
 no meeting time brings within the arm's reach, at the scenario's settings and with two wider base-offset boxes (the
-second the ``*_wide`` variants') or a longer window.
+second the ``*_wide`` variants') or a longer window, and how many of them the reach proof settles (no plan exists);
+``--reach-plot DIR`` draws the proof's slack over the window of each state out of reach.
 
 ``carry`` (issue 20) plans the coverage section's seeded states cold in process (default kinds: the two general
 tumbles) and re-verifies each feasible plan at states displaced in attitude (2.5-45°) and body rate (0.25-2 °/s):
@@ -166,6 +167,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                     help="optimal: take each state's offline optimum from an earlier run's --out JSON of the same "
                          "scenario, seed and grid box instead of planning it again (another table of that box "
                          "measured in minutes)")
+    ap.add_argument("--reach-plot", type=Path, default=None, metavar="DIR",
+                    help="the reach section also draws reach_slack.png here: how far beyond the arm's reach each "
+                         "out-of-reach state's grasp stays over the start-delay window")
     ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
                     help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
                          "--out file are kept, so one part can be re-measured after a change")
@@ -225,7 +229,8 @@ def main(argv: list[str] | None = None) -> int:
     settings = replace(settings_for(args.quick, args.trim, args.seed, args.plan_runs, args.plan_cap_s,
                                     args.plan_with_costs, args.refine_budget_s, cov),
                        optimal=optimal_settings(args.quick, args.trim, args.optimal_table, args.optimal_states,
-                                                        args.optimal_budget_s, args.optimal_optima))
+                                                        args.optimal_budget_s, args.optimal_optima),
+                       reach_plot=args.reach_plot)
     only = None
     if args.only is not None:
         only = tuple(name.strip() for name in args.only.split(",") if name.strip())

@@ -377,12 +377,15 @@ def test_a_query_out_of_reach_is_out_of_reach_whatever_its_table_plan_fails():
     assert failure_kind(table_plan, "out of reach: no meeting time of the window") is FailureKind.OUT_OF_REACH
     assert failure_kind(table_plan, "killed at its time limit") is FailureKind.NO_GRASP_HELD
     assert failure_kind([], "out of reach: …") is None  # a feasible answer is not a failure
+    assert failure_kind(table_plan, "out of reach (proven): at every start delay …") is FailureKind.OUT_OF_REACH_PROVEN
 
 
 @pytest.mark.parametrize(("run", "kind"), [
     (CliRun(0, 30.0, "FEASIBLE\n", "", None), None),
     (CliRun(None, 130.0, "", "built in 3.8 s; solving…", None), FailureKind.OVER_BUDGET),
     (CliRun(2, 6.5, "", "INFEASIBLE (1.5 s): out of reach: no meeting time", None), FailureKind.OUT_OF_REACH),
+    (CliRun(2, 0.9, "", "INFEASIBLE (0.1 s): out of reach (proven): at every start delay", None),
+     FailureKind.OUT_OF_REACH_PROVEN),
     (CliRun(2, 9.0, "", "INFEASIBLE (9.0 s): no plan: the solve gave none", None), FailureKind.NO_PLAN),
     (CliRun(1, 2.0, "", "error: --attitude: not a unit quaternion", None), FailureKind.BUG),
     (CliRun(70, 2.0, "", "internal error: …", None), FailureKind.BUG),
@@ -516,6 +519,27 @@ def test_reach_counts_each_what_if_over_the_coverage_states(bench):
             e = r[kind][name]
             assert e["states"] == r["states_per_kind"] and e["out_of_reach"] == len(e["indices"])
             assert all(0 <= i < e["states"] for i in e["indices"])
+            # a state the proof settles is one the scan reaches no meeting time of; its slack is the proof's
+            assert set(e["proven_indices"]) <= set(e["indices"]) and e["proven"] == len(e["proven_indices"])
+            proven = [slack > 0 for slack in e["slack_m"]]
+            assert proven == [i in e["proven_indices"] for i in e["indices"]]
+
+
+def test_the_reach_section_tells_the_proven_states_apart_and_draws_them(tmp_path):
+    """Seed 8's first three scenario I flat spins: state 2's grasp stays beyond the arm's reach (proven), and the
+    figure draws each state out of reach at the scenario's settings."""
+    from dataclasses import replace
+
+    from bench_sections.common import coverage_settings, settings_for
+    from bench_sections.reach import reach
+
+    cov = coverage_settings(False, False, 3, 1, None, ("scenario_I_flat_spin",))
+    settings = replace(settings_for(True, False, 8, None, 300.0, False, 100.0, cov), reach_plot=tmp_path / "fig")
+    r = reach(settings)
+    e = r["scenario_I_flat_spin"]["scenario"]
+    assert e["indices"] == [2] and e["proven_indices"] == [2] and e["slack_m"][0] > 0.5
+    figure = Path(r["figure"])
+    assert figure == tmp_path / "fig" / "reach_slack.png" and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_the_reach_what_if_of_a_2_m_box_is_the_wide_variants_box():

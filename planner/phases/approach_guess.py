@@ -11,7 +11,6 @@ largest clearance, and fit Eq. 23's parameters to a smooth joint motion from θ_
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from enum import Enum
 
 import casadi as ca
 import numpy as np
@@ -30,12 +29,13 @@ from planner.phases.approach_drift import correct_for_base_drift, ik_jacobian
 from planner.phases.approach_ik import PoseIK
 from planner.phases.approach_start import StartClearance, starts_elsewhere_in_box
 from planner.phases.pregrasp_pose import at_own_angle, free_axis_turn, pregrasp_position
+from planner.phases.reach_proof import reach_proof
+from planner.phases.reach_scan_result import DELAY_STEP_S, ApproachGuess, MeetingOutcome, ReachScan
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
 
 Array = NDArray[np.float64]
 
-DELAY_STEP_S = 2.0  # candidate meeting times are this far apart
 IK_SEED = 20261122  # fixed: same inputs, same guesses
 IK_EXTRA_STARTS = 4
 # a scan whose IK reached no meeting time from near the base-offset guess scans again, starting also from each point of
@@ -51,49 +51,6 @@ TRACKING_SPEED_MARGIN = (0.6, 0.8, 0.8)
 # follows one branch across the whole window; each angle adds one guess after the scan's own
 FREE_AXIS_ANGLES_DEG = (0.0, 90.0, 180.0, 270.0)
 ANGLE_SEPARATION_RAD = np.radians(20.0)  # guesses this far apart about the free axis reach different grasps
-
-
-@dataclass(frozen=True)
-class ApproachGuess:
-    """One NLP start: the approach's decision parameters, with the pose IK's answers it was fitted to."""
-
-    params: Array  # (7·(N−5),) Eq. 23 free parameters, planner.nlp.phase_spline layout [rad, rad/s³]
-    base_offset_m: Array  # (2,) θ_b(0): (x, z) [m]
-    start_delay_s: float  # [s]
-    q_pregrasp: Array  # (7,) [rad]
-    q_tracking: Array  # (len(TRACKING_NODES), 7) [rad]
-    clearance_m: float  # smallest distance of its configurations [m]
-    free_axis_angle_rad: float | None = None  # the angle about a free grasp axis it holds the handle at [rad]
-
-
-class MeetingOutcome(Enum):
-    """What the scan found at one candidate meeting time."""
-
-    REACHED = "reached"  # pre-grasp and tracking poses solved: a candidate NLP start
-    BEYOND_REACH = "beyond reach"  # the pre-grasp is farther than the arm reaches from every admissible base offset
-    IK_UNSOLVED = "IK unsolved"  # within that bound, but the bounded IK found no pre-grasp or tracking pose
-
-
-@dataclass(frozen=True)
-class ReachScan:
-    """The scan of meeting times over the start-delay window: its NLP starts and what it found at each time."""
-
-    guesses: list[ApproachGuess]
-    window_s: float  # the start-delay window [0, window_s] [s]
-    outcomes: tuple[MeetingOutcome, ...]  # one per scanned meeting time, DELAY_STEP_S apart
-
-    @property
-    def reachable(self) -> bool:
-        """True when at least one meeting time gave an NLP start."""
-        return MeetingOutcome.REACHED in self.outcomes
-
-    def reason(self) -> str:
-        """Why nothing was reachable, in one sentence (for an infeasible answer)."""
-        beyond = self.outcomes.count(MeetingOutcome.BEYOND_REACH)
-        unsolved = self.outcomes.count(MeetingOutcome.IK_UNSOLVED)
-        return (f"out of reach: no meeting time within the start-delay window [0, {self.window_s:g}] s is reachable "
-                f"(of {len(self.outcomes)} scanned every {DELAY_STEP_S:g} s, the pre-grasp is beyond the arm's reach "
-                f"at {beyond}; at {unsolved} the arm cannot take the pre-grasp and tracking poses)")
 
 
 @dataclass(frozen=True)
@@ -177,6 +134,9 @@ class ScanOnDemand:
 def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int,
           held_angles: bool) -> ReachScan:
     sc = scenario
+    proof = reach_proof(sc, state)
+    if proof.proven:  # no plan reaches the grasp at any meeting time: the IK need not be asked
+        return ReachScan([], sc.phases.max_start_delay_s, (), proof)
     robot = sc.robot
     free = sc.target.grasp.free_axis
     # a few fixed, seeded extra starts: the IK has local minima (folded vs stretched arm)
@@ -200,7 +160,7 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     held = [] if free is None or not reached or not held_angles else \
         [_scan_window(_held_at(ctx, np.radians(a)), reached)[0] for a in FREE_AXIS_ANGLES_DEG]
     return ReachScan(_best_guesses(spline, _diverse(candidates, held, count)), sc.phases.max_start_delay_s,
-                     tuple(outcomes))
+                     tuple(outcomes), proof)
 
 
 def _horizon_s(sc: Scenario) -> float:

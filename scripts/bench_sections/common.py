@@ -91,6 +91,7 @@ class Settings:
     baseline_max_delay_s: float | None  # None: the scenario's own start-delay window
     coverage: CoverageSettings
     optimal: OptimalSettings | None = None  # None: the section is skipped
+    reach_plot: Path | None = None  # the reach section's figure goes here (None: no figure)
 
 
 OPTIMUM_BUDGET_S = 600.0  # the offline optimum's default budget: scenario I's optima end far inside it

@@ -10,6 +10,7 @@ from typing import Any
 from bench_sections.coverage_runs import BUDGET_RAN_OUT, EXIT_MEANINGS, OVER_BUDGET
 
 OUT_OF_REACH = "out of reach"
+OUT_OF_REACH_PROVEN = "out of reach (proven)"
 NO_PLAN = "no plan"
 # a run's reasons that say the bench or the planner is wrong (an infeasible exit is the state's, not a bug)
 BUGS = frozenset(meaning for code, meaning in EXIT_MEANINGS.items() if code != 2)
@@ -22,7 +23,9 @@ class FailureKind(StrEnum):
 
     BUG = "bug"  # bad input, a usage error, a crash: the bench or the planner is wrong, not the state
     OVER_BUDGET = "over budget"  # late or killed: the product's promise broken, whatever else failed
-    OUT_OF_REACH = "out of reach"  # no meeting time brings the grasp within the arm's reach: refused before solving
+    # no plan can bring the grasp within the arm's reach at any meeting time (planner.phases.reach_proof)
+    OUT_OF_REACH_PROVEN = "out of reach (proven)"
+    OUT_OF_REACH = "out of reach"  # the scan of meeting times reached none: refused before solving
     NO_PLAN = "no plan"  # a query whose solves gave no plan and whose table had none near the state
     NO_GRASP_HELD = "no grasp held"  # verify refuses the plan before its grasp: the approach, the tracking, the grasp
     BRAKING = "braking"  # the grasp held; every failed check lies in the braking, from the grasp on
@@ -41,6 +44,8 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
         return FailureKind.BUG
     if OVER_BUDGET in names:
         return FailureKind.OVER_BUDGET
+    if OUT_OF_REACH_PROVEN in names or (refine_failure or "").startswith(OUT_OF_REACH_PROVEN):
+        return FailureKind.OUT_OF_REACH_PROVEN
     if OUT_OF_REACH in names or (refine_failure or "").startswith(OUT_OF_REACH):
         return FailureKind.OUT_OF_REACH
     if NO_PLAN in names:

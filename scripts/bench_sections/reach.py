@@ -4,8 +4,11 @@ wider base-offset boxes θ_b(0) (the second the ``*_wide`` variants') and a long
 
 An out-of-reach state is refused by ``lutgen plan`` at once (``out of reach: …``, exit 2): its failure is the
 scenario's geometry (the handle never faces the chaser within reach from the admissible base offsets during the
-window), not the planner's. The what-ifs say which setting would bring it within reach; the bundled scenarios keep
-theirs.
+window), not the planner's. Where the reach proof holds (:mod:`planner.phases.reach_proof`: the grasp's wrist point
+beyond the chaser's reach at every meeting time) no plan exists at all; elsewhere it is the scan's verdict. The
+what-ifs say which setting would bring a state within reach; the bundled scenarios keep theirs. With ``--reach-plot
+DIR`` the section draws, per kind, the proof's slack over the window of each state out of reach at the scenario's
+settings (:mod:`bench_sections.reach_figure`).
 """
 
 from __future__ import annotations
@@ -28,13 +31,15 @@ WHAT_IFS = {  # name → how the scenario is changed
 
 
 def reach(settings: Settings) -> dict[str, Any]:
-    """Per kind: how many of the coverage states are out of reach under each what-if, and which (indices)."""
+    """Per kind: how many of the coverage states are out of reach under each what-if, which (indices), how many of
+    them the reach proof settles, and each one's certified slack [m]."""
     from planner.model.target_state import TargetState
     from planner.phases.approach import approach_spline
     from planner.phases.approach_guess import reach_scan
 
     c = settings.coverage
     out: dict[str, Any] = {"states_per_kind": c.states, "seed": settings.seed, "what_ifs": list(WHAT_IFS)}
+    curves: dict[str, list[tuple[int, Any, Any]]] = {}
     for kind in KINDS:
         if c.kinds is not None and kind.name not in c.kinds:
             continue
@@ -45,7 +50,16 @@ def reach(settings: Settings) -> dict[str, Any]:
         for name, change in WHAT_IFS.items():
             sc = change(base)
             spline = approach_spline(sc)
-            unreachable = [i for i, s in enumerate(states) if not reach_scan(sc, spline, s).reachable]
-            entry[name] = {"out_of_reach": len(unreachable), "states": len(states), "indices": unreachable}
+            scans = {i: reach_scan(sc, spline, s) for i, s in enumerate(states)}
+            unreachable = [i for i, scan in scans.items() if not scan.reachable]
+            entry[name] = {"out_of_reach": len(unreachable), "states": len(states), "indices": unreachable,
+                           "proven": sum(scans[i].proven_out_of_reach for i in unreachable),
+                           "proven_indices": [i for i in unreachable if scans[i].proven_out_of_reach],
+                           "slack_m": [scans[i].proof.slack_m for i in unreachable]}
         out[kind.name] = entry
+        curves[kind.name] = [(i, base, states[i]) for i in entry["scenario"]["indices"]]
+    if settings.reach_plot is not None:
+        from bench_sections.reach_figure import draw_reach_slack
+
+        out["figure"] = str(draw_reach_slack(curves, settings.reach_plot, settings.seed))
     return out

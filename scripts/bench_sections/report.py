@@ -152,7 +152,7 @@ def _optimal(o: dict[str, Any]) -> tuple[str, list[Row]]:
 
 
 def _reach(r: dict[str, Any]) -> tuple[str, list[Row]]:
-    rows = [(f"{kind} {name}", f"{e['out_of_reach']}/{e['states']} out of reach")
+    rows = [(f"{kind} {name}", f"{e['out_of_reach']}/{e['states']} out of reach, {e.get('proven', 0)} of them proven")
             for kind, entry in r.items() if isinstance(entry, dict) and kind not in ("what_ifs",)
             for name, e in entry.items()]
     return f"reach ({r['states_per_kind']} states per kind, the scan of meeting times only)", rows

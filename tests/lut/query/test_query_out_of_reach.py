@@ -2,10 +2,10 @@
 reachable state whose solve gives no plan (crashed, killed at its time limit) is answered infeasible too (exit 2,
 never the exit 1 of bad input).
 
-The state: a scenario II flat spin of the coverage section (seed 7) whose cold plan is refused as out of reach in
-2 s; on the golden table (scenario II, spin axis fixed at orbital z) it lies off the grid, so the table's carried
-plans fail verify. Before, the query then spent half its budget on a warm refine and the rest on a cold solve that
-said out of reach (51 s).
+The state: a scenario II flat spin of the coverage section (seed 7) that no plan can reach (the reach proof: the
+grasp's wrist point beyond the chaser's reach at every meeting time); on the golden table (scenario II, spin axis fixed
+at orbital z) it lies off the grid, so the table's carried plans fail verify. Before, the query then spent half its
+budget on a warm refine and the rest on a cold solve that said out of reach (51 s).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def test_out_of_reach_with_a_table_plan_answers_it_infeasible_without_a_solve(tq
     monkeypatch.setattr(tq, "refine", _no_refine)
     result = tq.query(STATE, budget_s=100.0)
     assert not result.report.feasible
-    assert result.refine_failure.startswith("out of reach: no meeting time")
+    assert result.refine_failure.startswith("out of reach (proven): at every start delay within [0, 90] s")
 
 
 def test_out_of_reach_without_a_table_plan_raises_it(tq, monkeypatch):
@@ -57,7 +57,7 @@ def test_the_cli_says_out_of_reach_in_one_line_and_exits_2_without_writing_a_pla
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     assert "Traceback" not in proc.stderr and not out.exists()
     lines = proc.stderr.splitlines()
-    assert lines[0].startswith("INFEASIBLE (") and "out of reach: " in lines[0]
+    assert lines[0].startswith("INFEASIBLE (") and "out of reach (proven): " in lines[0]
     assert lines[1] == "no plan written: there is no trajectory to export"
 
 

@@ -1,0 +1,75 @@
+"""What the approach's scan of meeting times found: its NLP starts, the outcome at each meeting time, the verdict.
+
+A state is out of reach when no meeting time gave a start: *proven* (:mod:`planner.phases.reach_proof`, no plan
+exists), or as far as the scan's local IK can tell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.phases.reach_proof import ReachProof
+
+Array = NDArray[np.float64]
+
+DELAY_STEP_S = 2.0  # candidate meeting times are this far apart
+
+
+@dataclass(frozen=True)
+class ApproachGuess:
+    """One NLP start: the approach's decision parameters, with the pose IK's answers it was fitted to."""
+
+    params: Array  # (7·(N−5),) Eq. 23 free parameters, planner.nlp.phase_spline layout [rad, rad/s³]
+    base_offset_m: Array  # (2,) θ_b(0): (x, z) [m]
+    start_delay_s: float  # [s]
+    q_pregrasp: Array  # (7,) [rad]
+    q_tracking: Array  # (len(TRACKING_NODES), 7) [rad]
+    clearance_m: float  # smallest distance of its configurations [m]
+    free_axis_angle_rad: float | None = None  # the angle about a free grasp axis it holds the handle at [rad]
+
+
+class MeetingOutcome(Enum):
+    """What the scan found at one candidate meeting time."""
+
+    REACHED = "reached"  # pre-grasp and tracking poses solved: a candidate NLP start
+    BEYOND_REACH = "beyond reach"  # the pre-grasp is farther than the arm reaches from every admissible base offset
+    IK_UNSOLVED = "IK unsolved"  # within that bound, but the bounded IK found no pre-grasp or tracking pose
+
+
+@dataclass(frozen=True)
+class ReachScan:
+    """The scan of meeting times over the start-delay window: its NLP starts and what it found at each time.
+
+    ``proof``: the reach proof made before the scan; when it proves the state out of reach no meeting time is
+    scanned (``outcomes`` empty).
+    """
+
+    guesses: list[ApproachGuess]
+    window_s: float  # the start-delay window [0, window_s] [s]
+    outcomes: tuple[MeetingOutcome, ...]  # one per scanned meeting time, DELAY_STEP_S apart
+    proof: ReachProof | None = None
+
+    @property
+    def reachable(self) -> bool:
+        """True when at least one meeting time gave an NLP start."""
+        return MeetingOutcome.REACHED in self.outcomes
+
+    @property
+    def proven_out_of_reach(self) -> bool:
+        """True when no plan can reach the grasp (not only the scan's IK)."""
+        return self.proof is not None and self.proof.proven
+
+    def reason(self) -> str:
+        """Why nothing was reachable, in one sentence (for an infeasible answer)."""
+        if self.proven_out_of_reach:
+            return self.proof.reason()
+        beyond = self.outcomes.count(MeetingOutcome.BEYOND_REACH)
+        unsolved = self.outcomes.count(MeetingOutcome.IK_UNSOLVED)
+        return (f"out of reach: no meeting time within the start-delay window [0, {self.window_s:g}] s is reachable "
+                f"(of {len(self.outcomes)} scanned every {DELAY_STEP_S:g} s, the pre-grasp is beyond the arm's reach "
+                f"at {beyond}; at {unsolved} the arm cannot take the pre-grasp and tracking poses; the scan's verdict, "
+                f"not a proof)")
