@@ -39,6 +39,7 @@ class ReachProof:
     ``slack_m``: the smallest, over the window, of the wrist point's distance from the nearest admissible centre of
     mass less the reach radius, less ``margin_m`` [m]; > 0 proves the state out of reach. ``start_delay_s``: where
     that smallest distance is [s]. ``margin_m``: what sampling and verify's grasp tolerances take off [m].
+    ``radius_m``: the arm's reach radius about the centre of mass [m]; ``window_s``: the start-delay window [s].
     """
 
     slack_m: float
@@ -61,7 +62,8 @@ class ReachProof:
 
 
 def reach_proof(scenario: Scenario, state: TargetState, step_s: float = SAMPLE_STEP_S) -> ReachProof:
-    """The certified reach slack of ``state`` over the scenario's start-delay window (deterministic, ~0.1 s)."""
+    """The certified reach slack of ``state`` over the scenario's start-delay window (deterministic; milliseconds for a
+    fixed grasp, tens of them for one free about an axis)."""
     wrist = wrist_reach(scenario.robot)
     delays_s, distance_m = wrist_distance_over_window(scenario, state, step_s, wrist)
     margin = _margin_m(scenario, state, wrist, float(np.max(np.diff(delays_s), initial=0.0)))
