@@ -13,3 +13,4 @@ class ExitCode(IntEnum):
     INFEASIBLE = 2  # plan/query: a plan was made but verification failed (do not run it)
     USAGE = 64  # the command line itself is malformed (unknown option, missing argument); BSD EX_USAGE
     INTERNAL = 70  # an unexpected exception: a defect of lutgen or the machine, never the input; BSD EX_SOFTWARE
+    READER_GONE = 141  # stdout's reader closed it (``| head``): the output cut by its reader; 128 + SIGPIPE

@@ -67,7 +67,8 @@ def main() -> None:
     \b
     Exit codes: 0 done (plan/query: feasible), 1 bad input (one line "error: …"),
     2 infeasible (plan/query) or no-go (robustness --min-success), 64 malformed command line,
-    70 internal error (a defect or the machine; the traceback and a last line "internal error: …").
+    70 internal error (a defect or the machine; the traceback and a last line "internal error: …"),
+    141 stdout's reader closed it (e.g. "| head"; quietly).
     """
     warnings.formatwarning = _one_line_warning
 

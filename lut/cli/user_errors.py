@@ -1,9 +1,12 @@
 """One-line user errors: a :class:`LutgenError` becomes ``error: …`` on stderr and exit code 1, never a traceback;
-any other exception is lutgen's own failure, exit code 70, never 1."""
+stdout's reader gone (``| head``) ends the command quietly, exit code 141; any other exception is lutgen's own failure,
+exit code 70, never 1."""
 
 from __future__ import annotations
 
 import functools
+import os
+import select
 import sys
 import traceback
 from collections.abc import Callable
@@ -37,11 +40,27 @@ def user_errors(func: Callable[..., Any]) -> Callable[..., Any]:
             sys.exit(ExitCode.BAD_INPUT)
         except click.ClickException:
             raise
+        except BrokenPipeError as exc:
+            if not stdout_reader_gone():
+                report_internal_error(exc)
+                sys.exit(ExitCode.INTERNAL)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to say; none at exit
+            sys.exit(ExitCode.READER_GONE)
         except Exception as exc:  # noqa: BLE001 - the last line of defence: every other failure is ours
             report_internal_error(exc)
             sys.exit(ExitCode.INTERNAL)
 
     return wrapper
+
+
+def stdout_reader_gone() -> bool:
+    """True when stdout is a pipe whose reader has closed it (a worker's broken pipe is a failure of lutgen)."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poller.poll(0))
+    except (OSError, ValueError, AttributeError):  # no stdout, or no poll on this platform
+        return False
 
 
 def report_internal_error(exc: Exception) -> None:

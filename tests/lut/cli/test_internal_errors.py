@@ -51,3 +51,29 @@ def test_every_command_is_guarded():
 def test_help_names_the_code():
     proc = lutgen_in_process("--help")
     assert proc.returncode == 0 and "70 internal error" in proc.stdout
+
+
+def test_a_reader_that_closes_stdout_ends_the_command_quietly():
+    """``lutgen inspect TABLE | head -1``: the reader goes away before lutgen writes; no traceback, exit 141."""
+    import os
+    import subprocess
+
+    from tests.support.cli import LUTGEN
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before the first line: every write meets a closed pipe
+    proc = subprocess.run([LUTGEN, "inspect", str(ROOT / "tests" / "data" / "ci_golden.h5")], stdout=write_end,
+                          stderr=subprocess.PIPE, text=True, timeout=120)
+    os.close(write_end)
+    assert proc.returncode == ExitCode.READER_GONE == 141, proc.stderr
+    assert proc.stderr == ""
+
+
+def test_a_broken_pipe_that_is_not_stdouts_is_an_internal_error(monkeypatch):
+    def broken(*_args, **_kwargs):
+        raise BrokenPipeError(32, "Broken pipe")  # a worker's pipe, say: stdout is still read
+
+    monkeypatch.setattr("planner.collision.layout.scene_layout", broken)
+    proc = lutgen_in_process("validate", SCENARIO_II)
+    assert proc.returncode == ExitCode.INTERNAL
+    assert _last_line(proc.stderr).startswith("internal error: BrokenPipeError: ")
