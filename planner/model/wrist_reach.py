@@ -15,10 +15,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.model.robot import RobotModel, fk_function
+from planner.model.freefloating import momentum_map
+from planner.model.robot import RobotModel
 
 Array = NDArray[np.float64]
 
@@ -51,13 +53,11 @@ def wrist_reach(robot: RobotModel) -> WristReach:
 
 
 def centre_of_mass_m(robot: RobotModel, q: Array) -> Array:
-    """The chaser's centre of mass (3,) in the base frame at joint angles ``q`` [rad] [m]."""
-    fk = fk_function(robot)(np.asarray(q, dtype=float))
-    total = np.zeros(3)
-    for k, inertia in enumerate(robot.inertias):
-        R, p = np.asarray(fk[2 * k]), np.asarray(fk[2 * k + 1]).ravel()
-        total += inertia.mass_kg * (p + R @ inertia.com_body_m)
-    return total / robot.total_mass_kg
+    """The chaser's centre of mass (3,) in the base frame at joint angles ``q`` [rad] [m]: the free-floating model's
+    own (:func:`planner.model.freefloating.momentum_map`)."""
+    q_sym = ca.SX.sym("q", robot.n_joints)
+    com = ca.Function("centre_of_mass", [q_sym], [momentum_map(robot, q_sym).r_g])
+    return np.asarray(com(np.asarray(q, dtype=float))).ravel()
 
 
 def _fixed_in_last_link(robot: RobotModel, index: int) -> Array | None:

@@ -13,7 +13,7 @@ settings (:mod:`bench_sections.reach_figure`).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -30,6 +30,17 @@ WHAT_IFS = {  # name → how the scenario is changed
 }
 
 
+@dataclass(frozen=True)
+class OutOfReachState:
+    """One coverage state out of reach at its scenario's settings: its index, scenario, target state and the scan's
+    reach proof (what the figure draws)."""
+
+    index: int
+    scenario: Any  # planner.config.scenario.Scenario
+    state: Any  # planner.model.target_state.TargetState
+    proof: Any  # planner.phases.reach_proof.ReachProof
+
+
 def reach(settings: Settings) -> dict[str, Any]:
     """Per kind: how many of the coverage states are out of reach under each what-if, which (indices), how many of
     them the reach proof settles, and each one's certified slack [m]."""
@@ -39,7 +50,7 @@ def reach(settings: Settings) -> dict[str, Any]:
 
     c = settings.coverage
     out: dict[str, Any] = {"states_per_kind": c.states, "seed": settings.seed, "what_ifs": list(WHAT_IFS)}
-    curves: dict[str, list[tuple[int, Any, Any]]] = {}
+    curves: dict[str, list[OutOfReachState]] = {}
     for kind in KINDS:
         if c.kinds is not None and kind.name not in c.kinds:
             continue
@@ -52,12 +63,13 @@ def reach(settings: Settings) -> dict[str, Any]:
             spline = approach_spline(sc)
             scans = {i: reach_scan(sc, spline, s) for i, s in enumerate(states)}
             unreachable = [i for i, scan in scans.items() if not scan.reachable]
+            if name == "scenario":  # the figure draws the states out of reach at the scenario's own settings
+                curves[kind.name] = [OutOfReachState(i, base, states[i], scans[i].proof) for i in unreachable]
             entry[name] = {"out_of_reach": len(unreachable), "states": len(states), "indices": unreachable,
                            "proven": sum(scans[i].proven_out_of_reach for i in unreachable),
                            "proven_indices": [i for i in unreachable if scans[i].proven_out_of_reach],
                            "slack_m": [scans[i].proof.slack_m for i in unreachable]}
         out[kind.name] = entry
-        curves[kind.name] = [(i, base, states[i]) for i in entry["scenario"]["indices"]]
     if settings.reach_plot is not None:
         from bench_sections.reach_figure import draw_reach_slack
 

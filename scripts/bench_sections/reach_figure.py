@@ -5,15 +5,18 @@ reach radius). A curve above zero over the whole window is a state no plan can r
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from lut.output.plot_style import LIMIT_STYLE, new_figure, save_figure
 
+if TYPE_CHECKING:
+    from bench_sections.reach import OutOfReachState
 
-def draw_reach_slack(curves: dict[str, list[tuple[int, Any, Any]]], folder: Path, seed: int) -> Path:
-    """``reach_slack.png`` in ``folder`` (made if missing): one panel per kind, one curve per ``(state index,
-    scenario, target state)``, solid where proven out of reach, dashed where only the scan says so; the path."""
-    from planner.phases.reach_proof import reach_proof, wrist_distance_over_window
+
+def draw_reach_slack(curves: dict[str, list[OutOfReachState]], folder: Path, seed: int) -> Path:
+    """``reach_slack.png`` in ``folder`` (made if missing): one panel per kind, one curve per state, solid where proven
+    out of reach, dashed where only the scan says so; the path."""
+    from planner.phases.reach_proof import wrist_distance_over_window
 
     folder.mkdir(parents=True, exist_ok=True)
     fig = new_figure(11.0, 7.5)
@@ -21,11 +24,10 @@ def draw_reach_slack(curves: dict[str, list[tuple[int, Any, Any]]], folder: Path
     for ax in panels[len(curves):]:
         ax.set_visible(False)
     for ax, (kind, states) in zip(panels, curves.items(), strict=False):
-        for index, scenario, state in states:
-            proof = reach_proof(scenario, state)
-            delays_s, distance_m = wrist_distance_over_window(scenario, state)
-            ax.plot(delays_s, distance_m - proof.radius_m, linestyle="-" if proof.proven else "--",
-                    label=f"state {index}" + (" (proven)" if proof.proven else ""))
+        for s in states:
+            delays_s, distance_m = wrist_distance_over_window(s.scenario, s.state)
+            ax.plot(delays_s, distance_m - s.proof.radius_m, linestyle="-" if s.proof.proven else "--",
+                    label=f"state {s.index}" + (" (proven)" if s.proof.proven else ""))
         ax.axhline(0.0, **LIMIT_STYLE)
         ax.set_title(f"{kind}: {len(states)} out of reach", fontsize=10)
         ax.set_xlabel("start delay [s]")

@@ -119,3 +119,25 @@ def test_a_planned_grasp_meets_the_proofs_premise(scenarios, plan, name):
     pin.framesForwardKinematics(model, data, at(grasp))
     wrist = data.oMf[model.getFrameId(sc.robot.body_names[wrist_reach(sc.robot).body_index])].translation
     assert np.linalg.norm(wrist - com[-1]) <= wrist_reach(sc.robot).radius_m
+
+
+def test_at_the_reach_radius_itself_the_proof_turns_a_millimetre_either_side(scenarios):
+    """The touching case: the chaser pinned where a still target's wrist point lies exactly the radius plus the margin
+    from its centre of mass: slack 0, not proven; waiting 1 mm farther away proves it, 1 mm nearer does not."""
+    sc = scenarios["scenario_I"]
+    body = sc.target.body()
+    T = body.T_body_grasp
+    rel = body.p_world_com + T[:3, 3] + T[:3, :3] @ np.array([0.0, 0.0, -0.5]) - centre_of_mass_m(sc.robot,
+                                                                                                  sc.q_initial)
+    still = TargetState(np.array([1.0, 0, 0, 0]), np.zeros(3))
+    margin = reach_proof(sc, still).margin_m  # a still target: verify's tolerances alone, wherever the base
+    reach = wrist_reach(sc.robot).radius_m + margin
+    x_touching = rel[0] - np.sqrt(reach ** 2 - rel[1] ** 2)
+
+    def pinned(x: float):
+        return replace(sc, base_offset_bounds_m=((x, x), (rel[2], rel[2])))
+
+    assert reach_proof(pinned(x_touching), still).slack_m == pytest.approx(0.0, abs=1e-12)
+    farther, nearer = reach_proof(pinned(x_touching - 1e-3), still), reach_proof(pinned(x_touching + 1e-3), still)
+    assert farther.proven and farther.slack_m == pytest.approx(1e-3, abs=1e-9)
+    assert not nearer.proven and nearer.slack_m == pytest.approx(-1e-3, abs=1e-9)
