@@ -52,7 +52,7 @@ def test_the_scan_tells_what_it_found_at_every_meeting_time(scenario_II):
     for scan in (unreachable, reachable):
         assert len(scan.outcomes) == n_times
     assert not unreachable.reachable and MeetingOutcome.REACHED not in unreachable.outcomes
-    assert MeetingOutcome.BEYOND_REACH in unreachable.outcomes  # the provable bound decides part of the window
+    assert MeetingOutcome.BEYOND_REACH in unreachable.outcomes  # joint 1's reach, base frozen: part of the window
     # the scan's own three best meeting times, then one guess per angle about the boom it held the grasp frame at
     assert reachable.reachable and 3 <= len(reachable.guesses) <= 3 + len(FREE_AXIS_ANGLES_DEG)
     reached_times = {2.0 * i for i, o in enumerate(reachable.outcomes) if o is MeetingOutcome.REACHED}
