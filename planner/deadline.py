@@ -2,7 +2,9 @@
 
 An operator has 100 s from observing the target to moving the arm, so a plan is bounded as a whole: the
 grasp search starts no new grasp, and every NLP's iteration callback ends its solve, once the deadline has
-passed; what was found by then is verified and reported. Instants are ``time.monotonic()`` seconds.
+passed; what was found by then is verified and reported. A live plan's deadline also knows when its observation
+was made: an approach solved then may not start before the answer can come (:meth:`Deadline.earliest_start_s`).
+Instants are ``time.monotonic()`` seconds.
 """
 
 from __future__ import annotations
@@ -15,10 +17,12 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class Deadline:
     """The instant ``at_s`` [s, ``time.monotonic()``] a time budget ends; ``inf`` never does. ``what`` names the
-    budget in the notes of a plan it cut short."""
+    budget in the notes of a plan it cut short. ``observed_at_s`` [s, ``time.monotonic()``]: when the plan's
+    observation was made, for a live plan (None: a table point or an offline plan, whose times are hypothetical)."""
 
     at_s: float = math.inf
     what: str = "the plan's time budget"
+    observed_at_s: float | None = None
 
     @classmethod
     def after(cls, budget_s: float | None, since_s: float | None = None) -> Deadline:
@@ -44,9 +48,23 @@ class Deadline:
     def earlier(self, seconds: float, what: str | None = None) -> Deadline:
         """The deadline ``seconds`` [s] sooner: room kept back for what must follow (verification, export), or a
         share of the budget named ``what`` (default: this one's name)."""
-        return Deadline(self.at_s - seconds, self.what if what is None else what)
+        return Deadline(self.at_s - seconds, self.what if what is None else what, self.observed_at_s)
+
+    def observed(self, observed_at_s: float) -> Deadline:
+        """This deadline, of a live plan whose observation was made at ``observed_at_s`` [s, ``time.monotonic()``]."""
+        return Deadline(self.at_s, self.what, observed_at_s)
+
+    def earliest_start_s(self) -> float:
+        """The earliest start delay [s after the observation] an approach solved now may take: the time since the
+        observation and :data:`START_LEAD_S` for the rest of the plan (``-inf`` without an observation)."""
+        if self.observed_at_s is None:
+            return -math.inf
+        return time.monotonic() - self.observed_at_s + START_LEAD_S
 
 
 NO_DEADLINE = Deadline()
 # kept back from a budget to verify the plan found and write it out [s]
 VERIFY_RESERVE_S = 5.0
+# a live plan's approach solved now starts at least this long after: the solve itself, the tracking, the braking,
+# verify and the export (README "On time")
+START_LEAD_S = 10.0

@@ -39,16 +39,16 @@ class PlanParameters:
         return replace(self, approach=replace(self.approach, start_delay_s=float(start_delay_s)))
 
     def shifted_in_time(self, shift_s: float, period_s: float | None = None,
-                        max_delay_s: float | None = None) -> PlanParameters:
+                        window_s: tuple[float, float] | None = None) -> PlanParameters:
         """The flat-spin phase ↔ time symmetry: a target whose spin phase is ahead by Δφ reaches the same
         configuration Δφ/rate earlier, so ``shift_s`` = −Δφ/rate [s].
 
-        With a spin period and a largest delay, the delay is taken modulo the period and clamped to
-        ``max_delay_s`` when it lands beyond the window (:func:`wrap_start_delay`).
+        With a spin period and the start-delay window (earliest, latest) [s], the delay is moved by whole periods
+        into the window, or clamped to its nearer end when no such delay lies in it (:func:`wrap_start_delay`).
         """
         tau = self.approach.start_delay_s + shift_s
-        if period_s is not None and max_delay_s is not None and np.isfinite(period_s) and period_s > 0:
-            tau = wrap_start_delay(tau, period_s, max_delay_s)
+        if period_s is not None and window_s is not None and np.isfinite(period_s) and period_s > 0:
+            tau = wrap_start_delay(tau, period_s, window_s)
         return self.with_start_delay(tau)
 
     @staticmethod
@@ -72,12 +72,18 @@ class PlanParameters:
         return PlanParameters(approach, mean(lambda m: m.stabilization_params))
 
 
-def wrap_start_delay(tau_s: float, period_s: float, max_delay_s: float) -> float:
-    """``tau_s`` modulo the spin period [s]; beyond ``max_delay_s`` it is clamped to ``max_delay_s``."""
+def wrap_start_delay(tau_s: float, period_s: float, window_s: tuple[float, float]) -> float:
+    """The earliest delay whole spin periods from ``tau_s`` inside ``window_s`` (earliest, latest) [s]. Where none
+    lies in it: ``tau_s`` modulo the period beyond the latest is clamped to the latest; one before the earliest whose
+    next equivalent is beyond the latest, to the nearer of the two ends."""
+    earliest, latest = window_s
     tau = tau_s % period_s
-    if tau <= max_delay_s:
-        return tau
-    return 0.0 if tau >= period_s else max_delay_s  # a tiny negative tau_s modulo the period rounds to the period
+    tau = 0.0 if tau >= period_s else tau  # a tiny negative tau_s modulo the period rounds to the period
+    if tau < earliest:
+        tau += np.ceil((earliest - tau) / period_s) * period_s
+        if tau > latest:  # past the window: nearer its start (that far back) or its end
+            return earliest if earliest - (tau - period_s) <= tau - latest else latest
+    return min(tau, latest)
 
 
 def circular_gap(a: float, b: float, period_s: float) -> float:

@@ -351,6 +351,22 @@ def test_failure_kind_of_a_stored_plan_is_read_from_where_its_checks_fail():
     assert failure_kind(late) is FailureKind.OVER_BUDGET
 
 
+def test_a_feasible_plan_answered_after_its_approach_began_is_a_late_start():
+    """Verified feasible (no failed check), refused by the command as late: told apart from an unexplained failure;
+    a plan both infeasible and late is its physics' failure first."""
+    metrics = _stored_infeasible_plan()
+    passed = {**metrics, "checks": {k: {**c, "passed": True} for k, c in metrics["checks"].items()}}
+    answer = {"answer": {"answered_s": 10.9, "start_delay_s": 0.04, "late": True}}
+    reasons = failure_reasons(CliRun(2, 11.2, "", "INFEASIBLE: late: …", passed, answer), budget_s=100.0)
+    assert [r["reason"] for r in reasons] == ["late start"] and "10.9 s" in reasons[0]["detail"]
+    assert failure_kind(reasons) is FailureKind.LATE_START
+    both = failure_reasons(CliRun(2, 80.0, "", "", metrics, answer), budget_s=100.0)
+    assert "late start" in [r["reason"] for r in both] and failure_kind(both) is FailureKind.NO_GRASP_HELD
+    on_time = {"answer": {**answer["answer"], "late": False}}
+    assert [r["reason"] for r in failure_reasons(CliRun(2, 11.2, "", "INFEASIBLE", passed, on_time), 100.0)] == \
+        ["infeasible"]
+
+
 def _check(name: str, phase: str | None) -> dict[str, Any]:
     return {"reason": name, "phase": phase, "value": 1.0, "limit": 0.5, "margin": -0.5, "where": ""}
 

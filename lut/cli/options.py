@@ -37,6 +37,23 @@ def check_budget(budget_s: float) -> float:
     return budget_s
 
 
+def with_earliest_start(scenario: Scenario, earliest_s: float | None) -> Scenario:
+    """``scenario`` whose approach starts no earlier than ``--earliest-start-s`` [s] after the observation (as it is
+    without the option), checked: within [0, its latest start]."""
+    import math
+    from dataclasses import replace
+
+    from planner.errors import LutgenError
+
+    if earliest_s is None:
+        return scenario
+    latest = scenario.phases.max_start_delay_s
+    if not (math.isfinite(earliest_s) and 0 <= earliest_s <= latest):
+        raise LutgenError(f"--earliest-start-s: must be in [0, {latest:g}] s (the scenario's "
+                          f"phases.max_start_delay_s), got {earliest_s}")
+    return replace(scenario, phases=replace(scenario.phases, min_start_delay_s=float(earliest_s)))
+
+
 def cost_weights(base: CostWeights, specs: tuple[str, ...]) -> CostWeights:
     """Scenario cost weights with ``--cost name[=weight]`` overrides; ``--cost none`` = feasibility only."""
     from dataclasses import replace

@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import click
 
-from lut.cli.options import COST_NAMES, check_budget, check_plan_outputs, cost_weights, target_state_from_options
+from lut.cli.options import (
+    COST_NAMES,
+    check_budget,
+    check_plan_outputs,
+    cost_weights,
+    target_state_from_options,
+    with_earliest_start,
+)
 from lut.cli.plan_output import export_and_verdict, plan_table, refuse_without_plan
 from lut.cli.user_errors import user_errors
 
@@ -49,14 +56,23 @@ def validate(scenario_path: str) -> None:
 @click.option("--budget-s", type=float, default=100.0, show_default=True,
               help="Time budget of the whole plan (s), from the command's start, retries over grasps included: a "
                    "solve still running at it ends, and the plan found by then is verified and reported.")
+@click.option("--earliest-start-s", type=float, default=None,
+              help="The approach starts no earlier than this (s) after the observation (default: the scenario's "
+                   "phases.min_start_delay_s, 0 in the bundled ones): room to answer, look at the plan and move the "
+                   "chaser to its base offset. A plan whose approach starts before its answer is refused as late.")
+@click.option("--offline", is_flag=True, default=False,
+              help="The state is no live observation (a study, a table's reference): the approach may start anywhere "
+                   "in the window and its start is not judged against the answer's time.")
 @user_errors
 def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None, omega_deg_s: str | None,
          costs: tuple[str, ...], out_path: str | None, csv_path: str | None, verify_step_s: float,
-         budget_s: float) -> None:
+         budget_s: float, earliest_start_s: float | None, offline: bool) -> None:
     """Plan one grasp for SCENARIO_PATH directly (no look-up table), verify it densely, export it.
 
-    Exit code 0: feasible; 2: infeasible (the violated constraints are printed), out of reach, or no feasible
-    plan within --budget-s; 1: bad input.
+    Times count from the observation, taken to be the command's start: an approach solved then starts at least
+    10 s later (the rest of the plan), and a plan answered after its approach's start is refused as late (not with
+    --offline). Exit code 0: feasible and on time; 2: infeasible (the violated constraints are printed), out of
+    reach, no feasible plan within --budget-s, or late; 1: bad input.
     """
     import time
 
@@ -70,11 +86,13 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     from planner.verify.verifier import summary_lines, verify
 
     deadline = Deadline.after(check_budget(budget_s), started_s).earlier(VERIFY_RESERVE_S)
+    if not offline:  # a live observation: an approach solved later may not start before the answer can come
+        deadline = deadline.observed(started_s)
     if not 0 < verify_step_s <= 0.02:
         raise LutgenError(f"--verify-step-s: must be in (0, 0.02], got {verify_step_s}")
     sc = load_scenario(scenario_path)
     check_plan_outputs([scenario_path, *sc.input_files], out_path, csv_path)
-    sc = replace(sc, costs=cost_weights(sc.costs, costs))
+    sc = with_earliest_start(replace(sc, costs=cost_weights(sc.costs, costs)), earliest_start_s)
     state = target_state_from_options(sc, attitude, omega_deg_s, spin_rate_deg_s)
     click.echo(f"planning {sc.name}: building the problems…", err=True)
     planner = Planner(sc)
@@ -93,7 +111,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
         click.echo(f"note: {note}")
     for line in summary_lines(report):
         click.echo(line)
-    export_and_verdict(result, report, out_path, csv_path)
+    export_and_verdict(result, report, out_path, csv_path, None if offline else started_s)
 
 
 COMMANDS = (validate, plan)

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
+from lut.cli.answer_time import AnswerTime
 from lut.cli.exit_codes import ExitCode
 from lut.cli.process_end import end_command, exit_now
 
@@ -65,19 +66,28 @@ def query_block(costs: tuple[CostBreakdown, ...], scorer: CostScorer, source: st
 
 
 def export_and_verdict(result: GraspPlan, report: VerifyReport, out_path: str | None, csv_path: str | None,
-                       extra: dict[str, Any] | None = None) -> None:
-    """Write the plan JSON (with ``extra``'s top-level keys) and CSV where asked, then print FEASIBLE, or the
-    violations and exit 2."""
+                       started_s: float | None, extra: dict[str, Any] | None = None) -> None:
+    """Write the plan JSON (with ``extra``'s top-level keys and the ``answer`` object) and CSV where asked, then
+    print FEASIBLE, or the violations (and lateness) and exit 2. ``started_s``: the command's start, on
+    ``time.monotonic()``'s clock, taken as the observation's instant (None: an offline plan, whose start is not
+    judged against its answer)."""
+    import time
+
     from lut.output.export import plan_document, write_csv, write_json
 
+    answer = None if started_s is None else AnswerTime(result.approach.start_delay_s, time.monotonic() - started_s)
+    timing = {} if answer is None else {"answer": answer.as_dict()}
     if out_path:
-        write_json(out_path, plan_document(result, report) | (extra or {}))
+        write_json(out_path, plan_document(result, report) | (extra or {}) | timing)
         click.echo(f"wrote {out_path}")
     if csv_path:
         write_csv(csv_path, result, report)
         click.echo(f"wrote {csv_path}")
-    if not report.feasible:
-        click.echo("INFEASIBLE: " + "; ".join(report.violations), err=True)
+    if answer is not None:
+        click.echo(answer.line())
+    refusals = [*report.violations, *([answer.reason()] if answer is not None and answer.late else [])]
+    if refusals:
+        click.echo("INFEASIBLE: " + "; ".join(refusals), err=True)
         exit_now(ExitCode.INFEASIBLE)
     click.echo("FEASIBLE")
     end_command(ExitCode.OK)

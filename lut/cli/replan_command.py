@@ -31,10 +31,14 @@ def replan(plan_path: str, attitude: str, omega_deg_s: str, since_s: float, budg
     waits: warm-started from the previous plan, with the base offset it already holds pinned. The new plan's
     times count from the new estimate.
 
-    Exit code 0: feasible; 2: infeasible (violations printed); 1: bad input, or the approach has begun.
+    Exit code 0: feasible; 2: infeasible (violations printed), or late (its approach starts before this
+    answer, counted from the command's start); 1: bad input, or the approach has begun.
     """
+    import time
+
     import numpy as np
 
+    started_s = time.monotonic()  # the new estimate's instant: the new plan's times count from here
     from lut.output.plan_file import load_plan
     from lut.output.plan_replay import replay_inputs, resolve_scenario
     from lut.query.replan import replan as run_replan
@@ -49,7 +53,7 @@ def replan(plan_path: str, attitude: str, omega_deg_s: str, since_s: float, budg
     scenario = resolve_scenario(inputs, plan_path, scenario_path)
     check_plan_outputs([plan_path, scenario.source, scenario.robot.urdf_path, scenario.target.source], out_path,
                        csv_path)
-    result = run_replan(scenario, inputs.parameters, state, since_s, budget_s)
+    result = run_replan(scenario, inputs.parameters, state, since_s, budget_s, started_s)
     for line in plan_table(result.plan, result.report) + summary_lines(result.report):
         click.echo(line)
     x, z = result.plan.approach.base_offset_m
@@ -57,7 +61,7 @@ def replan(plan_path: str, attitude: str, omega_deg_s: str, since_s: float, budg
                f"approach starts {result.start_shift_s:+.3f} s from the previous schedule ({result.solve_s:.1f} s)")
     if result.solve_failure:
         click.echo(f"re-solve gave no feasible plan: {result.solve_failure}", err=True)
-    export_and_verdict(result.plan, result.report, out_path, csv_path)
+    export_and_verdict(result.plan, result.report, out_path, csv_path, started_s)
 
 
 COMMANDS = (replan,)

@@ -192,8 +192,9 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     """Turn an observed target state into a verified plan from a look-up table.
 
     With --robust, the most robust of the plans the query can produce is returned, with its success
-    probability (lutgen robustness' figure). Exit code 0: feasible; 2: infeasible (violations printed);
-    1: bad input, table or state.
+    probability (lutgen robustness' figure). Times count from the observation, taken to be the command's start.
+    Exit code 0: feasible and on time; 2: infeasible (violations printed), or late (the approach was to start
+    before the answer came); 1: bad input, table or state.
     """
     import numpy as np
 
@@ -214,7 +215,7 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
                        out_path, csv_path)
     try:
         if robust is not None:
-            _robust_query(tq, state, robust, budget_s, out_path, csv_path)
+            _robust_query(tq, state, robust, budget_s, out_path, csv_path, started_s)
             return
         result = tq.query(state, budget_s=budget_s, refine=refine, since_s=started_s)
     except (OutOfReach, NoPlan) as exc:  # no table plan near it and no solve gave one: nothing to verify or export
@@ -232,7 +233,7 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
         click.echo(line)
     if result.refine_failure:
         click.echo(f"refine did not finish: {result.refine_failure}", err=True)
-    export_and_verdict(result.plan, result.report, out_path, csv_path,
+    export_and_verdict(result.plan, result.report, out_path, csv_path, started_s,
                        {"query": query_block(result.costs, tq.scorer, str(result.source), result.corners_used)})
 
 
@@ -253,8 +254,9 @@ def _robust_request(sigmas: str, samples: int, seed: int, jobs: int) -> RobustRe
 
 
 def _robust_query(tq: TableQuery, state: TargetState, robust: RobustRequest, budget_s: float, out_path: str | None,
-                  csv_path: str | None) -> None:
-    """``query --robust``: every candidate judged, the chosen one printed, exported and given its verdict."""
+                  csv_path: str | None, started_s: float) -> None:
+    """``query --robust``: every candidate judged, the chosen one printed, exported and given its verdict
+    (``started_s``: the command's start, on ``time.monotonic()``'s clock)."""
     from lut.query.robust_choice import candidate_lines, robust_query
     from planner.verify.verifier import summary_lines
 
@@ -271,7 +273,7 @@ def _robust_query(tq: TableQuery, state: TargetState, robust: RobustRequest, bud
     for line in candidate_lines(choice):
         click.echo(line)
     click.echo(f"source {chosen.source} ({chosen.label})")
-    export_and_verdict(chosen.plan, chosen.report, out_path, csv_path)
+    export_and_verdict(chosen.plan, chosen.report, out_path, csv_path, started_s)
 
 
 COMMANDS = (build, inspect, query)

@@ -23,11 +23,12 @@ PINNED_SOLVER = "lut.query.pinned_solve:solve_pinned"
 
 def solve_pinned(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
                  omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
-                 max_wall_s: float | None = None, deadline_at_s: float | None = None) -> Record:
+                 max_wall_s: float | None = None, deadline_at_s: float | None = None,
+                 observed_at_s: float | None = None) -> Record:
     """Plan the state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]) from ``warm`` shifted in time by
     ``warm_shift_s`` [s], with θ_b(0) pinned at ``warm``'s base offset, and verify it; ``max_wall_s`` [s] caps each
-    NLP, ``deadline_at_s`` (a ``time.monotonic()`` instant) ends the plan as in
-    :func:`lut.solve.point_worker.solve_point`."""
+    NLP, ``deadline_at_s`` (a ``time.monotonic()`` instant) ends the plan and ``observed_at_s`` (the new estimate's
+    instant) dates it as in :func:`lut.solve.point_worker.solve_point`."""
     from planner.config.scenario import load_scenario
     from planner.model.target import TargetState
     from planner.plan import Planner
@@ -41,5 +42,5 @@ def solve_pinned(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float
     pinned = replace(sc, base_offset_bounds_m=((x, x), (z, z)), base_offset_guess_m=np.array([x, z]), solver=solver)
     state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
     warm_start = warm.with_start_delay(warm.approach.start_delay_s + warm_shift_s)
-    result = verified_plan(Planner(pinned), point, state, warm_start, plan_deadline(deadline_at_s))
+    result = verified_plan(Planner(pinned), point, state, warm_start, plan_deadline(deadline_at_s, observed_at_s))
     return to_record(replace(result, solve_time_s=time.perf_counter() - t0))

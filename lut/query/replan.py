@@ -49,8 +49,10 @@ class Replan:
 
 
 def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, since_s: float,
-           budget_s: float) -> Replan:
-    """The module docstring's re-plan of ``state`` (observed ``since_s`` [s] after the previous estimate)."""
+           budget_s: float, observed_at_s: float | None = None) -> Replan:
+    """The module docstring's re-plan of ``state`` (observed ``since_s`` [s] after the previous estimate, at
+    ``observed_at_s``, a ``time.monotonic()`` instant: its re-solve's approach starts after its answer can come;
+    None: now)."""
     from planner.plan import Planner
     from planner.verify.verifier import verify
 
@@ -73,7 +75,8 @@ def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, sin
                       f"no time left to re-solve within --budget-s {budget_s:g} s")
     # as a query's refine: each NLP gets at most half the time, the plan ends before the kill with its best, verified
     solved = run_point(PINNED_SOLVER, str(scenario.source), -1, state, previous, -since_s, timeout_s=room,
-                       max_wall_s=max(1.0, room / 2), plan_budget_s=room, timeout_name="--budget-s")
+                       max_wall_s=max(1.0, room / 2), plan_budget_s=room, timeout_name="--budget-s",
+                       solver_kwargs={"observed_at_s": time.monotonic() if observed_at_s is None else observed_at_s})
     if solved.status not in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) or solved.parameters is None:
         return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
                       solved.failure_reason or solved.status.value)

@@ -93,6 +93,7 @@ class TableQuery:
         self.feasible = [p for p, r in self.points.items() if r.status is PointStatus.FEASIBLE]
         self.scorer = CostScorer(self.scenario, self.planner.ff, self.planner.approach.spline)
         self._corner_costs: dict[int, CostBreakdown] = {}  # point → its stored plan's cost terms (corner_costs)
+        self.observed_at_s: float | None = None  # the query in progress's observation (time.monotonic()), for refine
         self.load_time_s = time.perf_counter() - t0
 
     # ---- lookup + interpolation ------------------------------------------------------------
@@ -151,6 +152,7 @@ class TableQuery:
         """
         t_start = time.perf_counter()
         deadline = Deadline.after(budget_s, since_s)
+        self.observed_at_s = time.monotonic() if since_s is None else since_s  # the observation: the refine's too
         latency: dict[str, float] = {}
         found = self.interpolate(state)
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
@@ -337,7 +339,7 @@ class TableQuery:
         """``parameters`` with the start delay wrapped into the scenario's window by whole spin periods."""
         rate = float(np.linalg.norm(state.omega_body_rad_s))
         return parameters.shifted_in_time(0.0, 2 * np.pi / rate if rate > 0 else None,
-                                          self.scenario.phases.max_start_delay_s)
+                                          self.scenario.phases.start_delay_window_s)
 
     def refine(self, state: TargetState, warm: PlanParameters | None, budget_s: float) -> PointResult:
         """A solve warm-started from ``warm`` (cold without) in a child process with a hard time limit [s].
@@ -349,7 +351,8 @@ class TableQuery:
         """
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
                          max_wall_s=max(1.0, budget_s / 2), plan_budget_s=budget_s,
-                         timeout_name="the refine's share of --budget-s")
+                         timeout_name="the refine's share of --budget-s",
+                         solver_kwargs=None if self.observed_at_s is None else {"observed_at_s": self.observed_at_s})
 
 
 def _spin_period_s(state: TargetState) -> float:

@@ -58,7 +58,7 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
                 omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
                 max_wall_s: float | None = None, deadline_at_s: float | None = None, cold_fallback: bool = False,
                 robust_attitude_sigma_deg: float | None = None, robust_rate_sigma_deg_s: float = 0.0,
-                robust_samples: int = 0) -> Record:
+                robust_samples: int = 0, observed_at_s: float | None = None) -> Record:
     """Plan and verify one target state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]); warm-started
     from a neighbour's parameters, shifted in time by ``warm_shift_s`` [s], when given.
 
@@ -68,7 +68,9 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     again cold (with its retries over grasps, within the same deadline), and the cold plan is kept if it is
     feasible: a neighbour's solution can lead into a family that does not work here.
     With ``robust_attitude_sigma_deg`` [deg] (and the rate σ [deg/s]) a feasible point also gets its robustness
-    figure over ``robust_samples`` drawn states (``lutgen build --robust``).
+    figure over ``robust_samples`` drawn states (``lutgen build --robust``). ``observed_at_s``: the instant of a
+    live observation (a query's refine): its approaches start no earlier than its answer can come
+    (:meth:`planner.deadline.Deadline.earliest_start_s`).
     """
     from planner.model.target import TargetState
 
@@ -78,9 +80,9 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     if warm is not None:
         rate = float(np.linalg.norm(omega_body_rad_s))
         period = 2 * np.pi / rate if rate > 0 else None
-        warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.max_start_delay_s)
+        warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.start_delay_window_s)
     t0 = time.perf_counter()
-    deadline = plan_deadline(deadline_at_s)
+    deadline = plan_deadline(deadline_at_s, observed_at_s)
     grasp_by = warm_grasp_deadline(deadline) if cold_fallback and warm_start is not None else None
     result = verified_plan(planner, point, state, warm_start, deadline, grasp_by)
     if cold_fallback and warm_start is not None and result.status is not PointStatus.FEASIBLE and not deadline.passed:
@@ -97,10 +99,13 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     return to_record(result)
 
 
-def plan_deadline(deadline_at_s: float | None) -> Deadline:
+def plan_deadline(deadline_at_s: float | None, observed_at_s: float | None = None) -> Deadline:
     """A solver's plan deadline: ``deadline_at_s`` (a ``time.monotonic()`` instant; None: none) less
-    :data:`VERIFY_RESERVE_S` to verify the plan and write the record before the process is killed."""
-    return NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
+    :data:`VERIFY_RESERVE_S` to verify the plan and write the record before the process is killed; of a live plan
+    observed at ``observed_at_s`` (a ``time.monotonic()`` instant, one clock for every process of the machine) when
+    given (a query's or a re-plan's solve; None: a table point)."""
+    deadline = NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
+    return deadline if observed_at_s is None else deadline.observed(observed_at_s)
 
 
 def warm_grasp_deadline(deadline: Deadline) -> Deadline:

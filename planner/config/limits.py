@@ -29,6 +29,7 @@ LIMITS: dict[str, Limit] = {
     "phases.tracking_s": Limit(60.0, unit="s"),
     "phases.stabilization_s": Limit(600.0, unit="s"),
     "phases.max_start_delay_s": Limit(3600.0, unit="s"),
+    "phases.min_start_delay_s": Limit(3600.0, unit="s"),
     "tracking.step_s": Limit(1.0, low=1e-4, unit="s"),
     "solver.max_wall_s": Limit(86400.0, unit="s"),
     # scenario: discretisation counts — each adds NLP variables or constraints

@@ -42,21 +42,32 @@ class TargetStateConfig:
 
 @dataclass(frozen=True)
 class PhaseTimes:
-    """Phase durations [s] and the admissible start delay along the target trajectory [s]."""
+    """Phase durations [s] and the admissible start delay along the target trajectory: the approach starts within
+    [``min_start_delay_s``, ``max_start_delay_s``] after the observation [s]."""
 
     approach_s: float
     tracking_s: float
     stabilization_s: float
     max_start_delay_s: float
+    min_start_delay_s: float = 0.0  # the earliest start: time to answer, look at the plan and move to θ_b(0)
 
     @staticmethod
     def read(p: TomlTable) -> PhaseTimes:
-        """The ``[phases]`` table (every field required)."""
+        """The ``[phases]`` table (every field required but ``min_start_delay_s``, 0 by default)."""
         phases = PhaseTimes(p.number("approach_s", positive=True), p.number("tracking_s", positive=True),
                             p.number("stabilization_s", positive=True),
-                            p.number("max_start_delay_s", nonnegative=True))
+                            p.number("max_start_delay_s", nonnegative=True),
+                            p.number("min_start_delay_s", 0.0, nonnegative=True))
+        if phases.min_start_delay_s > phases.max_start_delay_s:
+            raise p.error("min_start_delay_s", f"must not exceed max_start_delay_s ({phases.max_start_delay_s:g} s), "
+                          f"got {phases.min_start_delay_s:g}", phases.min_start_delay_s)
         p.finish()
         return phases
+
+    @property
+    def start_delay_window_s(self) -> tuple[float, float]:
+        """When the approach may start, after the observation: (earliest, latest) [s]."""
+        return self.min_start_delay_s, self.max_start_delay_s
 
 
 @dataclass(frozen=True)

@@ -155,7 +155,7 @@ class ApproachProblem:
         w = VectorLayout()
         w.add("spline_params", self.n_params)
         w.add("base_offset_m", 2, [bx[0], bz[0]], [bx[1], bz[1]])
-        w.add("start_delay_s", 1, 0.0, sc.phases.max_start_delay_s)
+        w.add("start_delay_s", 1, *sc.phases.start_delay_window_s)
         w.add("tracking_nodes", len(TRACKING_NODES) * rob.n_joints, np.tile(rob.q_min, len(TRACKING_NODES)),
               np.tile(rob.q_max, len(TRACKING_NODES)))
         return w

@@ -136,7 +136,7 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     sc = scenario
     proof = reach_proof(sc, state)
     if proof.proven:  # no plan reaches the grasp at any meeting time: the IK need not be asked
-        return ReachScan([], sc.phases.max_start_delay_s, (), proof)
+        return ReachScan([], sc.phases.start_delay_window_s, (), proof)
     robot = sc.robot
     free = sc.target.grasp.free_axis
     # a few fixed, seeded extra starts: the IK has local minima (folded vs stretched arm)
@@ -148,7 +148,8 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     ctx = _Scan(sc, motion, fk_function(robot), scene, PoseIK.shared(sc),
                 np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)]),
                 x_home, extra_starts, state, StartClearance(sc, scene, motion))
-    times = [float(t) for t in np.arange(0.0, sc.phases.max_start_delay_s + 1e-9, DELAY_STEP_S)]
+    earliest, latest = sc.phases.start_delay_window_s
+    times = [float(t) for t in np.arange(earliest, latest + 1e-9, DELAY_STEP_S)]
     candidates, outcomes = _scan_window(ctx, times)
     if not candidates:  # before answering out of reach, the IK starts from the rest of the base-offset box too
         elsewhere = starts_elsewhere_in_box(sc, [x_home, *extra_starts], BASE_STARTS_PER_AXIS)
@@ -159,7 +160,7 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     reached = [c.start_delay_s for c in candidates if np.isfinite(c.score)]
     held = [] if free is None or not reached or not held_angles else \
         [_scan_window(_held_at(ctx, np.radians(a)), reached)[0] for a in FREE_AXIS_ANGLES_DEG]
-    return ReachScan(_best_guesses(spline, _diverse(candidates, held, count)), sc.phases.max_start_delay_s,
+    return ReachScan(_best_guesses(spline, _diverse(candidates, held, count)), sc.phases.start_delay_window_s,
                      tuple(outcomes), proof)
 
 

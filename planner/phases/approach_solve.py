@@ -80,9 +80,12 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     n_warm = 0 if warm_start is None else 1
+    delay = problem.decision.slice("start_delay_s").start
     for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses), max_starts + n_warm)):
         if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
+        if guess is not None and w0[delay] < deadline.earliest_start_s():  # its meeting would come before the answer
+            continue
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
             break
@@ -220,7 +223,8 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
     scan = reach_scan(pinned, problem.spline, state, max_starts, held_angles=False)
     result, iterations = None, 0
-    for g in scan.guesses[:max_starts] if scan.reachable else []:
+    on_time = [g for g in scan.guesses if g.start_delay_s >= deadline.earliest_start_s()]
+    for g in on_time[:max_starts] if scan.reachable else []:
         limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
                              max_iterations=limit, deadline=deadline)
@@ -241,8 +245,8 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     :func:`solve_approach`'s."""
     p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
-    lbw = problem.lbw if lbw is None else lbw
-    ubw = problem.ubw if ubw is None else ubw
+    lbw, ubw = _not_before(problem, problem.lbw if lbw is None else lbw, problem.ubw if ubw is None else ubw,
+                           deadline.earliest_start_s())
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
     lbw, ubw = _one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
                                           lbg, ubg)
@@ -263,6 +267,17 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     stats = solver.stats()
     return _solution(problem, np.asarray(sol["x"]).ravel(), np.asarray(sol["g"]).ravel(), float(sol["f"]), stats,
                      elapsed)
+
+
+def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: float) -> tuple[Array, Array]:
+    """Bounds ``(lbw, ubw)`` with the start delay no earlier than ``earliest_s`` [s] (a live plan's answer cannot come
+    sooner) but within its upper bound (then pinned there: the plan is judged late, not left unsolved)."""
+    if not np.isfinite(earliest_s):
+        return lbw, ubw
+    delay = problem.decision.slice("start_delay_s").start
+    lbw = lbw.copy()
+    lbw[delay] = min(max(lbw[delay], earliest_s), ubw[delay])
+    return lbw, ubw
 
 
 def _one_side_of_singularities(problem: ApproachProblem, w0: Array, lbw: Array, ubw: Array, lbg: Array,
@@ -314,8 +329,8 @@ def _solution(problem: ApproachProblem, w: Array, g: Array, cost: float, stats: 
 
 def _within_window(problem: ApproachProblem, start_delay_s: float) -> float:
     """``start_delay_s`` [s] inside the start-delay window: an iterate ended early (a deadline, the feasibility stop)
-    may sit up to IPOPT's bound relaxation (1e-8 relative) outside it, and no time before the observation exists."""
-    return float(np.clip(start_delay_s, 0.0, problem.scenario.phases.max_start_delay_s))
+    may sit up to IPOPT's bound relaxation (1e-8 relative) outside it, and no start before the earliest exists."""
+    return float(np.clip(start_delay_s, *problem.scenario.phases.start_delay_window_s))
 
 
 def _planner_stop(problem: ApproachProblem) -> SolveOutcome | None:

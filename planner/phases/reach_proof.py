@@ -39,14 +39,15 @@ class ReachProof:
     ``slack_m``: the smallest, over the window, of the wrist point's distance from the nearest admissible centre of
     mass less the reach radius, less ``margin_m`` [m]; > 0 proves the state out of reach. ``start_delay_s``: where
     that smallest distance is [s]. ``margin_m``: what sampling and verify's grasp tolerances take off [m].
-    ``radius_m``: the arm's reach radius about the centre of mass [m]; ``window_s``: the start-delay window [s].
+    ``radius_m``: the arm's reach radius about the centre of mass [m]; ``window_s``: the start-delay window
+    (earliest, latest) [s].
     """
 
     slack_m: float
     start_delay_s: float
     margin_m: float
     radius_m: float
-    window_s: float
+    window_s: tuple[float, float]
 
     @property
     def proven(self) -> bool:
@@ -55,8 +56,9 @@ class ReachProof:
 
     def reason(self) -> str:
         """Why the state is out of reach, in one sentence (for an infeasible answer)."""
-        return (f"out of reach (proven): at every start delay within [0, {self.window_s:g}] s the grasp's wrist point "
-                f"stays at least {self.slack_m:.3f} m beyond the {self.radius_m:.3f} m the arm reaches from the "
+        earliest, latest = self.window_s
+        return (f"out of reach (proven): at every start delay within [{earliest:g}, {latest:g}] s the grasp's wrist "
+                f"point stays at least {self.slack_m:.3f} m beyond the {self.radius_m:.3f} m the arm reaches from the "
                 f"chaser's centre of mass, wherever in the base-offset box it waits (closest at "
                 f"{self.start_delay_s:g} s)")
 
@@ -69,7 +71,7 @@ def reach_proof(scenario: Scenario, state: TargetState, step_s: float = SAMPLE_S
     margin = _margin_m(scenario, state, wrist, float(np.max(np.diff(delays_s), initial=0.0)))
     k = int(np.argmin(distance_m))
     return ReachProof(float(distance_m[k] - wrist.radius_m - margin), float(delays_s[k]), margin, wrist.radius_m,
-                      scenario.phases.max_start_delay_s)
+                      scenario.phases.start_delay_window_s)
 
 
 def wrist_distance_over_window(scenario: Scenario, state: TargetState, step_s: float = SAMPLE_STEP_S,
@@ -79,8 +81,8 @@ def wrist_distance_over_window(scenario: Scenario, state: TargetState, step_s: f
     [m], at the samples (no margin)."""
     sc = scenario
     wrist = wrist_reach(sc.robot) if wrist is None else wrist
-    window = sc.phases.max_start_delay_s
-    delays = np.linspace(0.0, window, max(2, int(np.ceil(window / step_s)) + 1))
+    earliest, latest = sc.phases.start_delay_window_s
+    delays = np.linspace(earliest, latest, max(2, int(np.ceil((latest - earliest) / step_s)) + 1))
     grasp_s = delays + sc.phases.approach_s + sc.phases.tracking_s
     R_world_grasp, p_world_grasp = sc.target.motion(state, float(grasp_s[-1]) + 1.0).grasp_pose(grasp_s)
     p_wrist_from_com = p_world_grasp - centre_of_mass_m(sc.robot, sc.q_initial)  # θ_b(0) = 0

@@ -49,7 +49,7 @@ class ReachScan:
     """
 
     guesses: list[ApproachGuess]
-    window_s: float  # the start-delay window [0, window_s] [s]
+    window_s: tuple[float, float]  # the start-delay window (earliest, latest) [s]
     outcomes: tuple[MeetingOutcome, ...]  # one per scanned meeting time, DELAY_STEP_S apart
     proof: ReachProof | None = None
 
@@ -69,7 +69,8 @@ class ReachScan:
             return self.proof.reason()
         beyond = self.outcomes.count(MeetingOutcome.BEYOND_REACH)
         unsolved = self.outcomes.count(MeetingOutcome.IK_UNSOLVED)
-        return (f"out of reach: no meeting time within the start-delay window [0, {self.window_s:g}] s is reachable "
+        return (f"out of reach: no meeting time within the start-delay window "
+                f"[{self.window_s[0]:g}, {self.window_s[1]:g}] s is reachable "
                 f"(of {len(self.outcomes)} scanned every {DELAY_STEP_S:g} s, the pre-grasp is beyond the arm's reach "
                 f"at {beyond}; at {unsolved} the arm cannot take the pre-grasp and tracking poses; the scan's verdict, "
                 f"not a proof)")

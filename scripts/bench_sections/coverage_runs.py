@@ -25,6 +25,7 @@ PHASE = re.compile(r"\((approach|tracking|stabilization)\)")
 INFEASIBLE_LINE = re.compile(r"^INFEASIBLE \((?P<elapsed>[^)]*)\): (?P<reason>[^:]+)(?::|$)")
 OVER_BUDGET = "over budget"
 BUDGET_RAN_OUT = "budget ran out"  # the plan's own deadline ended a solve: on time, but not solved to the end
+LATE_START = "late start"  # the plan's approach was to start before its answer came (lut.cli.answer_time)
 
 
 @dataclass(frozen=True)
@@ -107,14 +108,26 @@ def failure_reasons(run: CliRun, budget_s: float) -> list[dict[str, Any]]:
     if run.exit_code == 0:
         return late
     if run.exit_code == 2 and run.metrics is not None:
-        checks = failed_checks(run.metrics) or [{"reason": "infeasible", "detail": last_line(run.stderr)}]
-        return budget_ran_out(run.metrics) + checks + late
+        late_start = late_start_reason(run.document or {})
+        checks = failed_checks(run.metrics) or ([] if late_start else [{"reason": "infeasible",
+                                                                         "detail": last_line(run.stderr)}])
+        return budget_ran_out(run.metrics) + checks + late_start + late
     for line in run.stderr.splitlines():
         match = INFEASIBLE_LINE.match(line.strip())
         if run.exit_code == 2 and match:  # refused before solving (out of reach), no plan written
             return [{"reason": match["reason"].strip(), "detail": line.strip()}, *late]
     what = EXIT_MEANINGS.get(run.exit_code, f"exit {run.exit_code}")
     return [{"reason": what, "detail": last_line(run.stderr) or "(nothing on stderr)"}, *late]
+
+
+def late_start_reason(document: dict[str, Any]) -> list[dict[str, Any]]:
+    """``[{"reason": "late start", …}]`` when the plan file's ``answer`` says its approach was to start before the
+    answer came, else ``[]``."""
+    answer = document.get("answer") or {}
+    if not answer.get("late"):
+        return []
+    return [{"reason": LATE_START, "detail": f"the approach at {answer['start_delay_s']:.2f} s, the answer at "
+                                             f"{answer['answered_s']:.1f} s after the observation"}]
 
 
 def budget_ran_out(metrics: dict[str, Any]) -> list[dict[str, Any]]:

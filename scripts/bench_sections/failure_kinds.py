@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from enum import StrEnum
 from typing import Any
 
-from bench_sections.coverage_runs import BUDGET_RAN_OUT, EXIT_MEANINGS, OVER_BUDGET
+from bench_sections.coverage_runs import BUDGET_RAN_OUT, EXIT_MEANINGS, LATE_START, OVER_BUDGET
 
 OUT_OF_REACH = "out of reach"
 OUT_OF_REACH_PROVEN = "out of reach (proven)"
@@ -29,6 +29,7 @@ class FailureKind(StrEnum):
     NO_PLAN = "no plan"  # a query whose solves gave no plan and whose table had none near the state
     NO_GRASP_HELD = "no grasp held"  # verify refuses the plan before its grasp: the approach, the tracking, the grasp
     BRAKING = "braking"  # the grasp held; every failed check lies in the braking, from the grasp on
+    LATE_START = "late start"  # verified feasible, but its approach was to start before its answer came
     UNEXPLAINED = "unexplained"  # infeasible, and no failed check says where
 
 
@@ -39,7 +40,7 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
     if not reasons:
         return None
     names = {r["reason"] for r in reasons}
-    phases = {r.get("phase") for r in reasons if r["reason"] not in (BUDGET_RAN_OUT, OVER_BUDGET)}
+    phases = {r.get("phase") for r in reasons if r["reason"] not in (BUDGET_RAN_OUT, OVER_BUDGET, LATE_START)}
     if names & BUGS or any(n.startswith("exit ") for n in names):
         return FailureKind.BUG
     if OVER_BUDGET in names:
@@ -54,6 +55,8 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
         return FailureKind.NO_GRASP_HELD
     if phases == {"stabilization"}:
         return FailureKind.BRAKING
+    if names == {LATE_START} or names == {LATE_START, BUDGET_RAN_OUT}:
+        return FailureKind.LATE_START
     return FailureKind.UNEXPLAINED
 
 

@@ -59,12 +59,13 @@ def query_record(tq: TableQuery, state: TargetState, budget_s: float) -> dict[st
 
 
 def optimum_record(tq: TableQuery, state: TargetState, budget_s: float) -> dict[str, Any]:
-    """A cold ``lutgen plan`` of the table's scenario at ``state`` with a generous budget, scored by the query's
-    own cost terms from the plan file's decision parameters (like with like)."""
+    """A cold ``lutgen plan --offline`` of the table's scenario at ``state`` with a generous budget (an offline
+    reference: its start is not judged against its answer), scored by the query's own cost terms from the plan
+    file's decision parameters (like with like)."""
     from lut.output.plan_replay import replay_inputs
 
     envelope = EnvelopeState(np.asarray(state.attitude_wxyz, dtype=float), np.degrees(state.omega_body_rad_s))
-    args = ["plan", relative(tq.scenario_path), *state_args(envelope), "--budget-s", f"{budget_s:g}"]
+    args = ["plan", relative(tq.scenario_path), *state_args(envelope), "--budget-s", f"{budget_s:g}", "--offline"]
     run = run_cli(args, budget_s + KILL_MARGIN_S)
     cost = None
     if run.document is not None:

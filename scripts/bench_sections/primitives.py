@@ -120,7 +120,7 @@ def golden_plan() -> GoldenPlan:
     state = tq.grid.state(point)
     found = tq.interpolate(state)
     rate = float(np.linalg.norm(state.omega_body_rad_s))
-    given = found.parameters.shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.max_start_delay_s)
+    given = found.parameters.shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.start_delay_window_s)
     plan, simulate_s = timed(lambda: tq.planner.simulate(state, given))
     return GoldenPlan(tq, int(point), found.corners, state, given, plan, simulate_s)
 

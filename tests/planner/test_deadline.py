@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 
-from planner.deadline import NO_DEADLINE, Deadline
+from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
 
 
 def test_no_deadline_never_passes_and_leaves_all_the_time():
@@ -22,3 +22,16 @@ def test_a_deadline_counts_from_the_given_instant():
     assert 0.0 < deadline.remaining_s() <= 2.0
     assert deadline.earlier(3.0).passed and deadline.earlier(3.0).remaining_s() < 0.0
     assert Deadline.after(0.0, now - 1e-3).passed  # a zero budget is over at once
+
+
+def test_only_a_live_plans_deadline_dates_the_earliest_start():
+    """A table point's deadline has no observation: its approach may start anywhere in the window; a live plan's
+    approach solved now starts no earlier than the time since the observation plus the lead, through every share
+    of its budget (``earlier``)."""
+    assert Deadline.after(30.0).earliest_start_s() == -math.inf and NO_DEADLINE.earliest_start_s() == -math.inf
+    observed = time.monotonic() - 7.0
+    live = Deadline.after(100.0, observed).observed(observed)
+    for deadline in (live, live.earlier(5.0), live.earlier(40.0, "a share"), NO_DEADLINE.observed(observed)):
+        floor = deadline.earliest_start_s()
+        assert 7.0 + START_LEAD_S <= floor < 7.0 + START_LEAD_S + 1.0  # the test itself takes far less than 1 s
+    assert live.earlier(5.0).at_s == live.at_s - 5.0 and live.earlier(5.0).observed_at_s == observed

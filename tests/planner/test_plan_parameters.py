@@ -26,14 +26,28 @@ def _params(tau_s: float, value: float) -> PlanParameters:
     (-1e-20, 0.0),  # the modulo rounds to the period itself: the delay is 0, not the window's end
 ])
 def test_wrap_start_delay_at_the_window_edges(tau_s, expected):
-    assert wrap_start_delay(tau_s, 90.0, 30.0) == expected
+    assert wrap_start_delay(tau_s, 90.0, (0.0, 30.0)) == expected
+
+
+@pytest.mark.parametrize("tau_s,window,expected", [
+    (20.0, (20.0, 80.0), 20.0),  # exactly at the earliest start: kept
+    (20.0 - 1e-9, (20.0, 80.0), 20.0),  # just before it, one period later beyond the window: the earliest, nearer
+    (5.0, (20.0, 30.0), 20.0),  # before the window, 95 s beyond it: the earliest (15 s away) is nearer than 30 (65 s)
+    (-25.0, (20.0, 30.0), 30.0),  # 65 s: beyond the latest, clamped to it as before
+    (-80.0, (20.0, 80.0), 20.0),  # 10 s, and 100 s beyond the window: the earliest is 10 s away, the latest 20 s
+    (-40.0, (20.0, 60.0), 50.0),  # 50 s: inside the window as it is
+])
+def test_wrap_start_delay_into_a_window_that_starts_later(tau_s, window, expected):
+    """A start-delay window that opens after the observation (``phases.min_start_delay_s``): the equivalent delay
+    inside it, else its nearer end."""
+    assert wrap_start_delay(tau_s, 90.0, window) == pytest.approx(expected, abs=1e-12)
 
 
 def test_shifted_in_time_wraps_only_with_a_period_and_a_window():
     p = _params(20.0, 1.0)
     assert p.shifted_in_time(100.0).approach.start_delay_s == 120.0  # no period: a plain shift
-    assert p.shifted_in_time(100.0, 90.0, 30.0).approach.start_delay_s == 30.0
-    assert p.shifted_in_time(-15.0, float("inf"), 30.0).approach.start_delay_s == 5.0  # no spin: no wrap
+    assert p.shifted_in_time(100.0, 90.0, (0.0, 30.0)).approach.start_delay_s == 30.0
+    assert p.shifted_in_time(-15.0, float("inf"), (0.0, 30.0)).approach.start_delay_s == 5.0  # no spin: no wrap
 
 
 def test_weighted_mean_averages_delays_across_the_end_of_a_period():

@@ -7,6 +7,7 @@ scenario II state is in ``test_plan_scenarios.py`` (slow).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -219,11 +220,15 @@ def test_screened_out_grasps_wait_until_no_grasp_passed_the_screen(planner_II, m
 
 
 class _SwitchedDeadline:
-    """A deadline that passes when the test says so (the planner reads only these two properties)."""
+    """A deadline that passes when the test says so (the planner reads only these properties), of no observation."""
 
     bounded = True
     passed = False
     what = "the plan's time budget"
+
+    @staticmethod
+    def earliest_start_s() -> float:
+        return -math.inf
 
 
 def test_past_the_deadline_no_further_grasp_is_tried(planner_II, monkeypatch):

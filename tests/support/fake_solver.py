@@ -33,7 +33,8 @@ def _stabilization_size(scenario_path: str) -> int:
 
 def solve(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64], omega_body_rad_s: NDArray[np.float64],
           warm: PlanParameters | None, warm_shift_s: float, max_wall_s: float | None = None,
-          deadline_at_s: float | None = None, cold_fallback: bool = False) -> Record:
+          deadline_at_s: float | None = None, cold_fallback: bool = False,
+          observed_at_s: float | None = None) -> Record:
     """The solver protocol of :func:`lut.solve.point_worker.solve_point`, answered without an NLP."""
     if os.environ.get("LUTGEN_FAKE_RAISE") == str(point):
         raise RuntimeError(f"injected failure at point {point}")
@@ -59,7 +60,7 @@ def solve(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64], om
 def solve_in_warm_minimum(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float64],
                           omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
                           max_wall_s: float | None = None, deadline_at_s: float | None = None,
-                          cold_fallback: bool = False) -> Record:
+                          cold_fallback: bool = False, observed_at_s: float | None = None) -> Record:
     """:func:`solve`, but a warm-started plan keeps its warm start's base offset (it lands in the neighbour's
     minimum, so at its Eq. 16 cost), and is infeasible at the point ``LUTGEN_FAKE_INFEASIBLE`` names."""
     rec = solve(scenario_path, point, attitude_wxyz, omega_body_rad_s, warm, warm_shift_s)

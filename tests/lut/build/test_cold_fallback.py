@@ -24,7 +24,7 @@ class _Planner:
     """Answers a warm plan and a cold plan with the verdicts the test chose; records the warm starts it got."""
 
     def __init__(self, warm_ok: bool, cold_ok: bool) -> None:
-        self.scenario = SimpleNamespace(phases=SimpleNamespace(max_start_delay_s=60.0))
+        self.scenario = SimpleNamespace(phases=SimpleNamespace(start_delay_window_s=(0.0, 60.0)))
         self.verdicts = {"warm": warm_ok, "cold": cold_ok}
         self.calls: list[str] = []
         self.deadlines: list[tuple[Deadline, Deadline | None]] = []

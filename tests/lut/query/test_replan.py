@@ -41,7 +41,9 @@ def test_exact_newer_estimate_repeats_the_maneuver_on_the_shifted_clock(plan, tm
                             "--out", tmp_path / "new.json")
     assert res.returncode == 0, res.stdout + res.stderr
     assert "(previous plan)" in res.stdout  # feasible as it stands: nothing is re-solved
+    assert " s ahead" in res.stdout  # its approach starts well after this answer
     new = json.loads((tmp_path / "new.json").read_text())
+    assert new["answer"]["late"] is False and new["answer"]["start_delay_s"] > new["answer"]["answered_s"]
     assert new["parameters"]["base_offset_m"] == doc["parameters"]["base_offset_m"]
     old_start, new_start = doc["parameters"]["start_delay_s"], new["parameters"]["start_delay_s"]
     assert new_start + since == pytest.approx(old_start, abs=1e-9)
@@ -55,6 +57,20 @@ def test_exact_newer_estimate_repeats_the_maneuver_on_the_shifted_clock(plan, tm
         # the propagated state differs from the one the plan saw in its last bits, and the stabilization's start
         # from the grasp state amplifies that (1e-5 rad; see test_robustness_command)
         assert gap.max() < 1e-3
+
+
+def test_an_estimate_just_before_the_approach_gives_a_late_answer_refused(plan, tmp_path):
+    """The same maneuver, 0.05 s before its approach starts: the answer (a re-simulation and a verification) comes
+    after the motion should have begun, so it cannot be flown as planned: refused, written for a look."""
+    doc = json.loads(plan.read_text())
+    since = doc["parameters"]["start_delay_s"] - 0.05
+    res = lutgen_in_process("replan", plan, *state_at(doc, since), "--since-s", repr(since), "--budget-s", "900",
+                            "--out", tmp_path / "new.json")
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "(previous plan)" in res.stdout and " s late" in res.stdout
+    assert "INFEASIBLE: late: the approach was to start 0.05 s after the observation" in res.stderr
+    new = json.loads((tmp_path / "new.json").read_text())
+    assert new["answer"]["late"] is True and new["status"] == "feasible"  # sound physics, too late
 
 
 @pytest.mark.slow

@@ -1,0 +1,84 @@
+"""The start-delay window that opens after the observation (``phases.min_start_delay_s``): the scan, the reach proof,
+the approach NLP and a whole plan keep the approach's start inside [earliest, latest]; 0 is the window as before."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from planner.config.scenario import load_scenario
+from planner.deadline import START_LEAD_S, Deadline
+from planner.model.target import TargetState
+from planner.phases.approach import approach_spline
+from planner.phases.approach_guess import reach_scan
+from planner.phases.reach_proof import reach_proof, wrist_distance_over_window
+from planner.phases.reach_scan_result import DELAY_STEP_S
+from planner.plan import Planner
+from planner.verify.verifier import verify
+from tests.support.cli import ROOT
+
+EARLIEST_S = 20.0  # scenario I's default state meets at a start delay of ~32.7 s with the window open from 0
+
+
+@pytest.fixture(scope="module")
+def scenario_I():
+    return load_scenario(ROOT / "configs" / "scenarios" / "scenario_I.toml")
+
+
+def _from(sc, earliest_s: float):
+    return replace(sc, phases=replace(sc.phases, min_start_delay_s=earliest_s))
+
+
+def test_the_bundled_window_opens_at_the_observation(scenario_I):
+    assert scenario_I.phases.start_delay_window_s == (0.0, scenario_I.phases.max_start_delay_s)
+
+
+def test_the_scan_and_the_proof_start_at_the_earliest_start(scenario_I):
+    sc = _from(scenario_I, EARLIEST_S)
+    state = sc.target_state.as_state()
+    scan = reach_scan(sc, approach_spline(sc), state)
+    latest = sc.phases.max_start_delay_s
+    assert len(scan.outcomes) == int((latest - EARLIEST_S) // DELAY_STEP_S) + 1
+    assert scan.reachable and all(EARLIEST_S <= g.start_delay_s <= latest for g in scan.guesses)
+    assert scan.window_s == (EARLIEST_S, latest)
+    delays, _ = wrist_distance_over_window(sc, state)
+    assert delays[0] == EARLIEST_S and delays[-1] == latest
+    proof = reach_proof(sc, state)
+    assert proof.window_s == (EARLIEST_S, latest) and EARLIEST_S <= proof.start_delay_s <= latest
+
+
+def test_a_window_closed_to_every_reachable_meeting_is_answered_with_it(scenario_I):
+    """The default state reaches no meeting time from 40 s on: the refusal names the window it scanned."""
+    sc = _from(scenario_I, 40.0)
+    scan = reach_scan(sc, approach_spline(sc), sc.target_state.as_state())
+    assert not scan.reachable
+    assert "start-delay window [40, 90] s" in scan.reason()
+
+
+def test_a_plan_starts_no_earlier_than_the_window_and_verifies(scenario_I):
+    planner = Planner(_from(scenario_I, EARLIEST_S))
+    delay = planner.approach.decision.slice("start_delay_s").start
+    assert planner.approach.lbw[delay] == EARLIEST_S  # the NLP's own bound, not only its start
+    plan = planner.plan(scenario_I.target_state.as_state())
+    assert plan.approach.start_delay_s >= EARLIEST_S
+    assert verify(plan).feasible
+    assert np.isclose(plan.phases["approach"][0], plan.approach.start_delay_s)
+
+
+# a scenario I flat spin (coverage section, seed 7, state 17) whose approach meets at 0.68 s with the window open
+EARLY_STATE = ((0.378483351335, -0.0140455517503, 0.597285821665, 0.706967271149), (0.0, 1.60531163556, 0.0))
+
+
+def test_a_live_plans_approach_starts_after_its_answer_can_come(scenario_I):
+    """Planned offline the approach meets at once (0.68 s, before any answer could come); planned live, every
+    approach solve keeps its start delay past the time since the observation plus the lead, and the plan verifies."""
+    state = TargetState(np.array(EARLY_STATE[0]), np.radians(EARLY_STATE[1]))
+    planner = Planner(scenario_I)
+    assert planner.plan(state).approach.start_delay_s < 1.0  # the premise
+    observed = time.monotonic()
+    plan = planner.plan(state, deadline=Deadline.after(100.0, observed).observed(observed))
+    assert plan.approach.start_delay_s >= START_LEAD_S
+    assert verify(plan).feasible
