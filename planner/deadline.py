@@ -66,5 +66,5 @@ NO_DEADLINE = Deadline()
 # kept back from a budget to verify the plan found and write it out [s]
 VERIFY_RESERVE_S = 5.0
 # a live plan's approach solved now starts at least this long after: the solve itself, the tracking, the braking,
-# verify and the export (README "On time")
-START_LEAD_S = 10.0
+# verify and the export (README, the planner's constants)
+START_LEAD_S = 5.0

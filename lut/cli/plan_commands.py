@@ -70,7 +70,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     """Plan one grasp for SCENARIO_PATH directly (no look-up table), verify it densely, export it.
 
     Times count from the observation, taken to be the command's start: an approach solved then starts at least
-    10 s later (the rest of the plan), and a plan answered after its approach's start is refused as late (not with
+    5 s later (the rest of the plan), and a plan answered after its approach's start is refused as late (not with
     --offline). Exit code 0: feasible and on time; 2: infeasible (the violated constraints are printed), out of
     reach, no feasible plan within --budget-s, or late; 1: bad input.
     """

@@ -20,6 +20,7 @@ from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, angles_apart, reach_scan
+from planner.phases.reach_scan_result import DELAY_STEP_S
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_parameters import ApproachParameters
 
@@ -84,7 +85,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses), max_starts + n_warm)):
         if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
-        if guess is not None and w0[delay] < deadline.earliest_start_s():  # its meeting would come before the answer
+        if guess is not None and w0[delay] + DELAY_STEP_S < deadline.earliest_start_s():  # meets before the answer
             continue
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
@@ -223,7 +224,7 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
     scan = reach_scan(pinned, problem.spline, state, max_starts, held_angles=False)
     result, iterations = None, 0
-    on_time = [g for g in scan.guesses if g.start_delay_s >= deadline.earliest_start_s()]
+    on_time = [g for g in scan.guesses if g.start_delay_s + DELAY_STEP_S >= deadline.earliest_start_s()]
     for g in on_time[:max_starts] if scan.reachable else []:
         limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,

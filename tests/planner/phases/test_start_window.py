@@ -5,17 +5,19 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+import planner.phases.approach_solve as approach_solve
 from planner.config.scenario import load_scenario
 from planner.deadline import START_LEAD_S, Deadline
 from planner.model.target import TargetState
 from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import reach_scan
 from planner.phases.reach_proof import reach_proof, wrist_distance_over_window
-from planner.phases.reach_scan_result import DELAY_STEP_S
+from planner.phases.reach_scan_result import DELAY_STEP_S, ApproachGuess
 from planner.plan import Planner
 from planner.verify.verifier import verify
 from tests.support.cli import ROOT
@@ -82,3 +84,31 @@ def test_a_live_plans_approach_starts_after_its_answer_can_come(scenario_I):
     plan = planner.plan(state, deadline=Deadline.after(100.0, observed).observed(observed))
     assert plan.approach.start_delay_s >= START_LEAD_S
     assert verify(plan).feasible
+
+
+def test_a_scanned_guess_meeting_well_before_the_answer_is_not_started_from(scenario_I, monkeypatch):
+    """Guesses 3 s before the earliest start (more than one scan step): skipped; 1 s before: started from, its start
+    delay raised to the earliest by the NLP's bound; after it: started from as it is."""
+    problem = Planner(scenario_I).approach
+    delay = problem.decision.slice("start_delay_s").start
+    started: list[tuple[float, float]] = []  # (the guess's start delay, the solve's lower bound)
+
+    def recorded(problem, state, w0, scale, lbw=None, ubw=None, **kwargs):
+        bound = approach_solve._not_before(problem, problem.lbw if lbw is None else lbw,
+                                           problem.ubw if ubw is None else ubw,
+                                           kwargs["deadline"].earliest_start_s())[0][delay]
+        started.append((float(w0[delay]), float(bound)))
+        return SimpleNamespace(success=False, iterations=1, start_guess=None)
+
+    monkeypatch.setattr(approach_solve, "_solve_once", recorded)
+    monkeypatch.setattr(approach_solve, "replace", lambda result, **kwargs: result)
+    observed = time.monotonic() - 20.0  # the earliest start is now 20 s + the lead after the observation
+    floor = 20.0 + START_LEAD_S
+    params = np.zeros(problem.n_params)  # only their start delays matter: the solve is a stand-in
+    guesses = [ApproachGuess(params, np.zeros(2), tau, np.zeros(7), np.zeros((3, 7)), 0.1)
+               for tau in (floor - 3.0, floor - 1.0, floor + 5.0)]
+    scan = SimpleNamespace(serves=lambda state, count: True, result=SimpleNamespace(guesses=guesses))
+    approach_solve.solve_approach(problem, scenario_I.target_state.as_state(), max_starts=3, scan=scan,
+                                  deadline=Deadline.after(100.0, observed).observed(observed))
+    assert [tau for tau, _ in started] == [floor - 1.0, floor + 5.0]
+    assert all(floor <= bound < floor + 1.0 for _, bound in started)
