@@ -85,7 +85,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses), max_starts + n_warm)):
         if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
-        if guess is not None and w0[delay] + DELAY_STEP_S < deadline.earliest_start_s():  # meets before the answer
+        if guess is not None and not _meets_in_time(float(w0[delay]), deadline):
             continue
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
@@ -224,7 +224,7 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
     scan = reach_scan(pinned, problem.spline, state, max_starts, held_angles=False)
     result, iterations = None, 0
-    on_time = [g for g in scan.guesses if g.start_delay_s + DELAY_STEP_S >= deadline.earliest_start_s()]
+    on_time = [g for g in scan.guesses if _meets_in_time(g.start_delay_s, deadline)]
     for g in on_time[:max_starts] if scan.reachable else []:
         limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
@@ -268,6 +268,13 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     stats = solver.stats()
     return _solution(problem, np.asarray(sol["x"]).ravel(), np.asarray(sol["g"]).ravel(), float(sol["f"]), stats,
                      elapsed)
+
+
+def _meets_in_time(start_delay_s: float, deadline: Deadline) -> bool:
+    """Whether a scanned guess starting at ``start_delay_s`` [s] is worth a start under ``deadline``: it meets no more
+    than one scan step before the earliest start (the NLP's bound raises it that little); any, without an
+    observation."""
+    return start_delay_s + DELAY_STEP_S >= deadline.earliest_start_s()
 
 
 def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: float) -> tuple[Array, Array]:

@@ -25,6 +25,7 @@ from planner.model.freefloating import (
     quat_to_rotation_sym,
     rk4_step_function,
 )
+from planner.model.per_robot import PerRobot
 from planner.model.robot import RobotModel, fk_function
 from planner.model.rotation import quat_to_matrix
 from planner.nlp.compiled import compiled
@@ -134,19 +135,14 @@ def compound_poses_function(robot: RobotModel, fk: ca.Function) -> ca.Function:
 
 # compound RK4 steps compound_rk4_step keeps per process (one per robot model object); the oldest goes first
 COMPOUND_STEPS_KEPT = 4
-_compound_steps: dict[int, tuple[RobotModel, ca.Function]] = {}
 
 
-def compound_rk4_step(robot: RobotModel) -> ca.Function:
+def _compiled_compound_step(robot: RobotModel) -> ca.Function:
     """:func:`rk4_step_function` of the compound of ``robot`` and any grasped target, the grasp geometry
-    (:mod:`planner.model.compound`) as last input, compiled; made once per process for each robot object (the
-    stabilization NLP and every plan's dense re-simulation of its stabilization share it)."""
-    kept = _compound_steps.get(id(robot))
-    if kept is not None and kept[0] is robot:
-        return kept[1]
-    while len(_compound_steps) >= COMPOUND_STEPS_KEPT:
-        del _compound_steps[next(iter(_compound_steps))]
+    (:mod:`planner.model.compound`) as last input, compiled."""
     geometry = ca.SX.sym("geometry", GEOMETRY_SIZE)
-    step = compiled(rk4_step_function(GraspGeometry.unpack(geometry).compound(robot), geometry))
-    _compound_steps[id(robot)] = (robot, step)  # the robot is kept too: its id is not reused while it is here
-    return step
+    return compiled(rk4_step_function(GraspGeometry.unpack(geometry).compound(robot), geometry))
+
+
+# made once per process for each robot object: the stabilization NLP and every plan's dense re-simulation share it
+compound_rk4_step = PerRobot(_compiled_compound_step, COMPOUND_STEPS_KEPT)

@@ -29,6 +29,17 @@ def test_the_timing_line_and_the_refusal_say_both_instants():
     assert late.as_dict() == {"answered_s": 10.9, "start_delay_s": 0.04, "late": True}
 
 
+def test_an_earliest_start_at_either_end_of_the_window_is_taken():
+    from lut.cli.options import with_earliest_start
+    from planner.config.scenario import load_scenario
+
+    sc = load_scenario(SCENARIO_I)
+    latest = sc.phases.max_start_delay_s
+    assert with_earliest_start(sc, None) is sc
+    assert with_earliest_start(sc, 0.0).phases.start_delay_window_s == (0.0, latest)
+    assert with_earliest_start(sc, latest).phases.start_delay_window_s == (latest, latest)  # one start only
+
+
 @pytest.mark.parametrize("value", ["-1", "90.5", "nan", "inf"])
 def test_an_earliest_start_outside_the_scenarios_window_is_refused_in_one_line(value):
     proc = lutgen_in_process("plan", SCENARIO_I, "--earliest-start-s", value)

@@ -112,3 +112,19 @@ def test_a_scanned_guess_meeting_well_before_the_answer_is_not_started_from(scen
                                   deadline=Deadline.after(100.0, observed).observed(observed))
     assert [tau for tau, _ in started] == [floor - 1.0, floor + 5.0]
     assert all(floor <= bound < floor + 1.0 for _, bound in started)
+
+
+def test_the_earliest_start_raises_the_bound_and_pins_it_at_a_closed_window(scenario_I):
+    """No observation: the bounds as they are; within the window: the lower bound raised; past the window's end (an
+    answer that cannot come before the latest start): pinned at the latest, so the plan is judged late, not unsolved."""
+    problem = Planner(scenario_I).approach
+    delay = problem.decision.slice("start_delay_s").start
+    latest = scenario_I.phases.max_start_delay_s
+    lbw, ubw = approach_solve._not_before(problem, problem.lbw, problem.ubw, -np.inf)
+    assert lbw is problem.lbw and ubw is problem.ubw
+    raised, _ = approach_solve._not_before(problem, problem.lbw, problem.ubw, 12.5)
+    assert raised[delay] == 12.5 and problem.lbw[delay] == 0.0  # a copy: the problem's own bounds untouched
+    np.testing.assert_array_equal(np.delete(raised, delay), np.delete(problem.lbw, delay))
+    at_end, _ = approach_solve._not_before(problem, problem.lbw, problem.ubw, latest)
+    closed, ub = approach_solve._not_before(problem, problem.lbw, problem.ubw, latest + 30.0)
+    assert at_end[delay] == latest and closed[delay] == latest == ub[delay]
