@@ -54,6 +54,18 @@ class Deadline:
         """This deadline, of a live plan whose observation was made at ``observed_at_s`` [s, ``time.monotonic()``]."""
         return Deadline(self.at_s, self.what, observed_at_s)
 
+    def in_time_for(self, start_delay_s: float) -> Deadline:
+        """This deadline, or for a live plan the instant :data:`START_LEAD_S` before an approach starting at
+        ``start_delay_s`` [s after the observation] if that comes first: solving on past it, the plan would answer
+        after its own start (a table point's or an offline plan's deadline is unchanged)."""
+        if self.observed_at_s is None:
+            return self
+        start_by_s = self.observed_at_s + start_delay_s - START_LEAD_S
+        if start_by_s >= self.at_s:
+            return self
+        what = f"the time before the approach's start at {start_delay_s:.1f} s"
+        return Deadline(start_by_s, what, self.observed_at_s)
+
     def earliest_start_s(self) -> float:
         """The earliest start delay [s after the observation] an approach solved now may take: the time since the
         observation and :data:`START_LEAD_S` for the rest of the plan (``-inf`` without an observation)."""

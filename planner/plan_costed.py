@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.deadline import Deadline
+from planner.deadline import START_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner
 from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach_guess import ScanOnDemand
@@ -54,6 +54,10 @@ COSTED_APPROACH_ITERATIONS = COLD_START_ITERATIONS
 # own optimum needed no tightening and was braked in seconds (README "Optimal tables")
 FEASIBILITY_RESOLVE_ITERATIONS = COLD_START_ITERATIONS
 DIRECT_SHARE = 0.5  # of a bounded budget, for the costed approach's own optimum before any feasibility plan
+# a live plan's costed optimum ends this long after the observation at the latest [s]: where it is braked (scenario
+# I's default state) it took 9-10 s in all; where not (scenario II's default state) its approach ran its whole share
+# (6-51 s) and the meeting times the feasibility plan can reach (16-40 s) had passed
+LIVE_DIRECT_S = 20.0
 
 
 @dataclass
@@ -116,10 +120,14 @@ def plan_costed(planner: PhasePlanner, feasibility: Callable[[], PhasePlanner], 
 
 def _direct_deadline(deadline: Deadline) -> Deadline:
     """The costed approach's own optimum gets :data:`DIRECT_SHARE` of what is left of a bounded budget, so that the
-    feasibility plan that follows where it cannot be braked keeps the rest."""
+    feasibility plan that follows where it cannot be braked keeps the rest; a live plan's ends no later than
+    :data:`LIVE_DIRECT_S` after the observation, so that the feasibility plan can still meet in time."""
     if not deadline.bounded:
         return deadline
-    return deadline.earlier((1.0 - DIRECT_SHARE) * max(deadline.remaining_s(), 0.0))
+    share = deadline.earlier((1.0 - DIRECT_SHARE) * max(deadline.remaining_s(), 0.0))
+    if deadline.observed_at_s is None or deadline.observed_at_s + LIVE_DIRECT_S >= share.at_s:
+        return share
+    return Deadline(deadline.observed_at_s + LIVE_DIRECT_S, share.what, deadline.observed_at_s)
 
 
 def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParameters | None, scan: ScanOnDemand,
@@ -153,18 +161,24 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
              tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> None:
     """Trust-region steps from the current grasp: the full step first, then from :data:`FIRST_RADIUS_M`, doubled
     after a kept step and halved after a refused one; stops after :data:`MAX_STEPS`, below :data:`MIN_RADIUS_M`,
-    when a step gains nothing, or at ``deadline``."""
+    when a step gains nothing, or at ``deadline`` (for a live plan, :data:`~planner.deadline.START_LEAD_S` before its
+    approach's start, which every step keeps)."""
+    in_time = deadline.in_time_for(out.candidate.app.start_delay_s)
     radius = np.inf
     for _ in range(MAX_STEPS + 1):
-        if deadline.passed or radius < MIN_RADIUS_M or _at_its_floor(planner, out.cost_end):
+        if in_time.passed or radius < MIN_RADIUS_M or _at_its_floor(planner, out.cost_end):
             break
-        kept = _step(planner, state, motion, out, radius, tracking_speed_scale, deadline)
+        kept = _step(planner, state, motion, out, radius, tracking_speed_scale, in_time)
         if kept is None:  # converged: the cost does not fall inside this radius
             break
         if kept:
             radius = 2 * radius if np.isfinite(radius) else 0.0  # a full step kept is this meeting time's optimum
         else:
             radius = FIRST_RADIUS_M if not np.isfinite(radius) else radius / 2
+    if in_time.passed and in_time.at_s < deadline.at_s:
+        out.notes.append(f"costed plan: the descent stopped {START_LEAD_S:g} s before the approach's start at "
+                         f"{out.candidate.app.start_delay_s:.1f} s after the observation, so that the plan answers "
+                         "before it")
 
 
 def _at_its_floor(planner: PhasePlanner, cost: float) -> bool:

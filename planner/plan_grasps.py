@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
-from planner.deadline import NO_DEADLINE, Deadline
+from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner, accumulated
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.outcome import SolveOutcome
@@ -31,6 +31,7 @@ from planner.phases.approach import ApproachSolution
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
 from planner.phases.approach_solve import COLD_START_ITERATIONS, TriedGrasp, solve_approach, solve_approach_from_base
 from planner.phases.approach_start import base_offset_grid
+from planner.phases.scan_in_time import scan_in_time
 from planner.phases.stabilization import StabilizationSolution
 from planner.phases.tracking import TrackingResult
 from planner.phases.tracking_clearance import tracking_dip
@@ -142,6 +143,7 @@ class GraspSearch:
         get their budgeted solve only when no grasp passed the screen and stabilized. Past the deadline the last
         grasp tried is the answer.
         """
+        self.scan = scan_in_time(self.scan, self.deadline)  # a stage that came late (a costed plan's feasibility stage)
         app = self._solve_approach(self.warm.approach if self.warm is not None else None)
         first = self._candidate(app)
         self.approach_s += first.app.solve_time_s
@@ -194,6 +196,8 @@ class GraspSearch:
 
     def _note_failure(self, candidate: GraspCandidate, stab: StabilizationSolution, then: str) -> None:
         """Say in the plan's notes that the stabilization from ``candidate`` failed, and what comes next."""
+        if stab.status == SolveOutcome.OUT_OF_TIME and not self.deadline.passed:  # its approach's start: noted
+            return
         if stab.status == SolveOutcome.SCREENED_OUT:
             what = (f"was screened out (not feasible within {SCREEN_BUDGET} iterations of the coarse NLP, then of the "
                     f"full one: peak grasp torque {stab.peak_torque_nm:.3g} N·m, min distance "
@@ -288,13 +292,21 @@ class GraspSearch:
 
     def _stabilize(self, candidate: GraspCandidate, budget: int | None,
                    screen: int | None = None) -> StabilizationSolution:
-        """The stabilization from ``candidate`` (this plan's warm start, iteration budget, screen and deadline)."""
-        if self.deadline.passed:  # no NLP is built or solved: the smooth stop a cold solve starts from, unsolved
-            return candidate.unbraked(SolveOutcome.OUT_OF_TIME)
-        t0 = time.perf_counter()
-        result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget, screen,
-                                     self.deadline)
-        self.stabilization_s += time.perf_counter() - t0
+        """The stabilization from ``candidate`` (this plan's warm start, iteration budget, screen and deadline; a
+        live plan's ends :data:`~planner.deadline.START_LEAD_S` before ``candidate``'s approach starts: braked later,
+        the plan would answer after its own start)."""
+        in_time = self.deadline.in_time_for(candidate.app.start_delay_s)
+        if in_time.passed:  # no NLP is built or solved: the smooth stop a cold solve starts from, unsolved
+            result = candidate.unbraked(SolveOutcome.OUT_OF_TIME)
+        else:
+            t0 = time.perf_counter()
+            result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget,
+                                         screen, in_time)
+            self.stabilization_s += time.perf_counter() - t0
+        if result.status == SolveOutcome.OUT_OF_TIME and in_time is not self.deadline:
+            self.notes.append(f"the braking from the grasp at t = {candidate.grasp_time_s:.1f} s stopped "
+                              f"{START_LEAD_S:g} s before its approach's start ({candidate.app.start_delay_s:.1f} s "
+                              "after the observation): braked later, the plan would answer after it")
         return result
 
     def _candidate(self, app: ApproachSolution) -> GraspCandidate:

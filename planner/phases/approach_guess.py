@@ -124,6 +124,11 @@ class ScanOnDemand:
             and np.array_equal(state.omega_body_rad_s, self.state.omega_body_rad_s)
 
     @property
+    def made(self) -> bool:
+        """True once the scan has been made."""
+        return self._result is not None
+
+    @property
     def result(self) -> ReachScan:
         """The scan (made on the first call)."""
         if self._result is None:

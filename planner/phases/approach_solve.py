@@ -15,12 +15,13 @@ from itertools import islice
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.config.scenario import Scenario
 from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, angles_apart, reach_scan
-from planner.phases.reach_scan_result import DELAY_STEP_S
+from planner.phases.scan_in_time import meets_in_time, window_in_time
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_parameters import ApproachParameters
 
@@ -85,7 +86,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses), max_starts + n_warm)):
         if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
-        if guess is not None and not _meets_in_time(float(w0[delay]), deadline):
+        if guess is not None and not meets_in_time(float(w0[delay]), deadline):
             continue
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
@@ -222,10 +223,8 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     pinned = replace(problem.scenario, base_offset_bounds_m=((bx, bx), (bz, bz)),
                      base_offset_guess_m=np.array([bx, bz]))
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
-    scan = reach_scan(pinned, problem.spline, state, max_starts, held_angles=False)
     result, iterations = None, 0
-    on_time = [g for g in scan.guesses if _meets_in_time(g.start_delay_s, deadline)]
-    for g in on_time[:max_starts] if scan.reachable else []:
+    for g in _guesses_in_time(pinned, problem, state, max_starts, deadline):
         limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
                              max_iterations=limit, deadline=deadline)
@@ -236,6 +235,20 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     if result is None:
         return _no_start(problem, SolveOutcome.NO_PINNED_START, (bx, bz), time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _guesses_in_time(scenario: Scenario, problem: ApproachProblem, state: TargetState, count: int,
+                     deadline: Deadline) -> list[ApproachGuess]:
+    """Up to ``count`` guesses scanned for ``scenario`` that meet in time under ``deadline``: those of the whole
+    window's scan, or, when none of them does, of a scan of the window still in time
+    (:func:`~planner.phases.scan_in_time.window_in_time`)."""
+    scan = reach_scan(scenario, problem.spline, state, count, held_angles=False)
+    on_time = [g for g in scan.guesses if meets_in_time(g.start_delay_s, deadline)]
+    later = window_in_time(scenario, deadline)
+    if scan.guesses and not on_time and later is not scenario:
+        scan = reach_scan(later, problem.spline, state, count, held_angles=False)
+        on_time = [g for g in scan.guesses if meets_in_time(g.start_delay_s, deadline)]
+    return on_time[:count]
 
 
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,
@@ -268,13 +281,6 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     stats = solver.stats()
     return _solution(problem, np.asarray(sol["x"]).ravel(), np.asarray(sol["g"]).ravel(), float(sol["f"]), stats,
                      elapsed)
-
-
-def _meets_in_time(start_delay_s: float, deadline: Deadline) -> bool:
-    """Whether a scanned guess starting at ``start_delay_s`` [s] is worth a start under ``deadline``: it meets no more
-    than one scan step before the earliest start (the NLP's bound raises it that little); any, without an
-    observation."""
-    return start_delay_s + DELAY_STEP_S >= deadline.earliest_start_s()
 
 
 def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: float) -> tuple[Array, Array]:

@@ -35,3 +35,17 @@ def test_only_a_live_plans_deadline_dates_the_earliest_start():
         floor = deadline.earliest_start_s()
         assert 7.0 + START_LEAD_S <= floor < 7.0 + START_LEAD_S + 1.0  # the test itself takes far less than 1 s
     assert live.earlier(5.0).at_s == live.at_s - 5.0 and live.earlier(5.0).observed_at_s == observed
+
+
+def test_a_live_plan_must_stop_solving_the_lead_before_its_approach_starts():
+    """``in_time_for``: the earlier of the budget's end and the approach's start less the lead, for a live plan only;
+    at exactly the budget's end the budget is kept (its name too)."""
+    observed = time.monotonic()
+    budget = Deadline.after(100.0, observed)
+    live = budget.observed(observed)
+    assert live.in_time_for(30.0).at_s == observed + 30.0 - START_LEAD_S
+    assert live.in_time_for(30.0).observed_at_s == observed and "30.0 s" in live.in_time_for(30.0).what
+    assert live.in_time_for(100.0 + START_LEAD_S) == live  # the start's lead ends with the budget: the budget's
+    assert live.in_time_for(200.0) == live
+    assert budget.in_time_for(0.0) == budget and NO_DEADLINE.in_time_for(0.0) == NO_DEADLINE  # no observation
+    assert NO_DEADLINE.observed(observed).in_time_for(START_LEAD_S - 1.0).passed  # its start is within the lead

@@ -4,6 +4,7 @@ approach-energy cost planned feasible, with a cost no higher than its feasibilit
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -11,8 +12,10 @@ import numpy as np
 import pytest
 
 import planner.plan_costed as costed
-from planner.deadline import NO_DEADLINE, Deadline
+from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
 from planner.nlp.costs import approach_energy
+
+START_S = 30.0  # the grasp's start delay [s after the observation], kept by every step
 
 
 class _Stand:
@@ -22,12 +25,15 @@ class _Stand:
     def __init__(self, theta0: np.ndarray, stable_m: float) -> None:
         self.theta0, self.stable_m = theta0, stable_m
         self.radii: list[float] = []
+        self.deadlines: list[Deadline] = []
         self.approach = "costed NLP"
 
     def solve(self, problem, state, anchor, radius_m, scale, max_iterations, deadline):
         self.radii.append(radius_m)
+        self.deadlines.append(deadline)
         theta = anchor.base_offset_m - np.clip(anchor.base_offset_m, -radius_m, radius_m)  # toward 0 inside the box
-        return SimpleNamespace(success=True, base_offset_m=theta, cost=approach_energy(theta), solve_time_s=1.0)
+        return SimpleNamespace(success=True, base_offset_m=theta, cost=approach_energy(theta), solve_time_s=1.0,
+                               start_delay_s=anchor.start_delay_s)
 
     def candidate(self, app):
         ok = bool(np.all(np.abs(app.base_offset_m - self.theta0) <= self.stable_m))
@@ -43,7 +49,7 @@ def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE) -> co
                               approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None, [])),
                               scenario=SimpleNamespace(costs=SimpleNamespace(approach_energy=1.0, manipulability=0.0,
                                                                              min_distance=0.0)))
-    start = stand.candidate(SimpleNamespace(base_offset_m=stand.theta0.copy()))
+    start = stand.candidate(SimpleNamespace(base_offset_m=stand.theta0.copy(), start_delay_s=START_S))
     cost = approach_energy(stand.theta0)
     out = costed.CostDescent(start, SimpleNamespace(params=np.ones(3)), {"approach_s": 0.0, "stabilization_s": 0.0},
                              [], cost, cost)
@@ -87,6 +93,29 @@ def test_past_the_deadline_no_step_is_tried(monkeypatch):
     stand = _Stand(np.array([0.5, -0.5]), stable_m=10.0)
     d = _descend(monkeypatch, stand, Deadline(0.0))
     assert stand.radii == [] and d.cost_end == d.cost_start
+
+
+def test_a_live_descent_ends_the_lead_before_its_approach_starts(monkeypatch):
+    """Every step keeps the meeting time, so a live plan's descent must end :data:`START_LEAD_S` before the approach's
+    start (30 s after the observation), not at the budget's end (100 s): descending on, its answer would come after
+    the start it plans. A table point (no observation) keeps its whole budget."""
+    observed = time.monotonic()
+    budget = Deadline.after(100.0, observed)
+    stand = _Stand(np.array([-0.9, 0.9]), stable_m=10.0)
+    _descend(monkeypatch, stand, budget.observed(observed))
+    assert [d.at_s for d in stand.deadlines] == [observed + START_S - START_LEAD_S]
+    stand = _Stand(np.array([-0.9, 0.9]), stable_m=10.0)
+    _descend(monkeypatch, stand, budget)
+    assert [d.at_s for d in stand.deadlines] == [budget.at_s]
+
+
+def test_a_live_descent_whose_start_is_too_near_tries_no_step_and_says_why(monkeypatch):
+    """Observed 26 s ago, an approach starting at 30 s leaves less than the lead: no step, and a note."""
+    observed = time.monotonic() - (START_S - START_LEAD_S + 1.0)
+    stand = _Stand(np.array([0.5, -0.5]), stable_m=10.0)
+    d = _descend(monkeypatch, stand, Deadline.after(100.0, observed).observed(observed))
+    assert stand.radii == [] and d.cost_end == d.cost_start
+    assert any(f"the descent stopped {START_LEAD_S:g} s before the approach's start at 30.0 s" in n for n in d.notes)
 
 
 class _Direct:
@@ -169,6 +198,21 @@ def test_the_costed_optimum_gets_half_of_a_bounded_budget(monkeypatch):
     d.plan()
     bounded, unbounded = d.approach_calls[0][2], d.approach_calls[1][2]
     assert bounded.remaining_s() == pytest.approx(50.0, abs=0.5) and not unbounded.bounded
+
+
+def test_a_live_costed_optimum_leaves_the_feasibility_stage_a_meeting_in_time(monkeypatch):
+    """Scenario II's default state meets only between 16 and 40 s: a live plan's costed optimum ends 20 s after the
+    observation, not at half the budget (50 s: no meeting left for the feasibility plan). Offline it keeps its half;
+    a share that ends sooner is kept."""
+    d = _Direct(monkeypatch, braked=True)
+    observed = time.monotonic()
+    budget = Deadline.after(100.0, observed)
+    d.plan(budget.observed(observed))
+    d.plan(budget)
+    d.plan(Deadline.after(30.0, observed).observed(observed))
+    live, offline, short = (call[2] for call in d.approach_calls)
+    assert live.at_s == observed + costed.LIVE_DIRECT_S and live.observed_at_s == observed
+    assert offline.remaining_s() == pytest.approx(50.0, abs=0.5) and short.remaining_s() == pytest.approx(15.0, abs=0.5)
 
 
 @pytest.mark.parametrize("braked", [True, False])

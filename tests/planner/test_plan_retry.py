@@ -230,6 +230,9 @@ class _SwitchedDeadline:
     def earliest_start_s() -> float:
         return -math.inf
 
+    def in_time_for(self, start_delay_s: float) -> _SwitchedDeadline:
+        return self
+
 
 def test_past_the_deadline_no_further_grasp_is_tried(planner_II, monkeypatch):
     sc, planner = planner_II
