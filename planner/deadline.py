@@ -55,12 +55,12 @@ class Deadline:
         return Deadline(self.at_s, self.what, observed_at_s)
 
     def in_time_for(self, start_delay_s: float) -> Deadline:
-        """This deadline, or for a live plan the instant :data:`START_LEAD_S` before an approach starting at
+        """This deadline, or for a live plan the instant :data:`ANSWER_LEAD_S` before an approach starting at
         ``start_delay_s`` [s after the observation] if that comes first: solving on past it, the plan would answer
         after its own start (a table point's or an offline plan's deadline is unchanged)."""
         if self.observed_at_s is None:
             return self
-        start_by_s = self.observed_at_s + start_delay_s - START_LEAD_S
+        start_by_s = self.observed_at_s + start_delay_s - ANSWER_LEAD_S
         if start_by_s >= self.at_s:
             return self
         what = f"the time before the approach's start at {start_delay_s:.1f} s"
@@ -80,3 +80,6 @@ VERIFY_RESERVE_S = 5.0
 # a live plan's approach solved now starts at least this long after: the solve itself, the tracking, the braking,
 # verify and the export (README, the planner's constants)
 START_LEAD_S = 5.0
+# a live plan's last solve (a braking, a costed descent's step) ends at least this long before the approach's start it
+# plans: the plan's assembly and verify come after it (verify took 0.2 s at either default state, machine loaded)
+ANSWER_LEAD_S = 2.0

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.deadline import START_LEAD_S, Deadline
+from planner.deadline import ANSWER_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner
 from planner.model.target import TargetMotion, TargetState
 from planner.phases.approach_guess import ScanOnDemand
@@ -161,7 +161,7 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
              tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> None:
     """Trust-region steps from the current grasp: the full step first, then from :data:`FIRST_RADIUS_M`, doubled
     after a kept step and halved after a refused one; stops after :data:`MAX_STEPS`, below :data:`MIN_RADIUS_M`,
-    when a step gains nothing, or at ``deadline`` (for a live plan, :data:`~planner.deadline.START_LEAD_S` before its
+    when a step gains nothing, or at ``deadline`` (for a live plan, :data:`~planner.deadline.ANSWER_LEAD_S` before its
     approach's start, which every step keeps)."""
     in_time = deadline.in_time_for(out.candidate.app.start_delay_s)
     radius = np.inf
@@ -176,7 +176,7 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
         else:
             radius = FIRST_RADIUS_M if not np.isfinite(radius) else radius / 2
     if in_time.passed and in_time.at_s < deadline.at_s:
-        out.notes.append(f"costed plan: the descent stopped {START_LEAD_S:g} s before the approach's start at "
+        out.notes.append(f"costed plan: the descent stopped {ANSWER_LEAD_S:g} s before the approach's start at "
                          f"{out.candidate.app.start_delay_s:.1f} s after the observation, so that the plan answers "
                          "before it")
 

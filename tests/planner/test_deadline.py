@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 
-from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
+from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
 
 
 def test_no_deadline_never_passes_and_leaves_all_the_time():
@@ -43,9 +43,9 @@ def test_a_live_plan_must_stop_solving_the_lead_before_its_approach_starts():
     observed = time.monotonic()
     budget = Deadline.after(100.0, observed)
     live = budget.observed(observed)
-    assert live.in_time_for(30.0).at_s == observed + 30.0 - START_LEAD_S
+    assert live.in_time_for(30.0).at_s == observed + 30.0 - ANSWER_LEAD_S
     assert live.in_time_for(30.0).observed_at_s == observed and "30.0 s" in live.in_time_for(30.0).what
-    assert live.in_time_for(100.0 + START_LEAD_S) == live  # the start's lead ends with the budget: the budget's
+    assert live.in_time_for(100.0 + ANSWER_LEAD_S) == live  # the start's lead ends with the budget: the budget's
     assert live.in_time_for(200.0) == live
     assert budget.in_time_for(0.0) == budget and NO_DEADLINE.in_time_for(0.0) == NO_DEADLINE  # no observation
-    assert NO_DEADLINE.observed(observed).in_time_for(START_LEAD_S - 1.0).passed  # its start is within the lead
+    assert NO_DEADLINE.observed(observed).in_time_for(ANSWER_LEAD_S - 1.0).passed  # its start is within the lead

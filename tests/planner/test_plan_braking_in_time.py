@@ -1,5 +1,5 @@
 """A live plan brakes a grasp only while its answer can still come before that grasp's approach starts
-(``GraspSearch._stabilize``): the braking ends :data:`START_LEAD_S` before the start, a grasp already past it is not
+(``GraspSearch._stabilize``): the braking ends :data:`ANSWER_LEAD_S` before the start, a grasp already past it is not
 braked at all, and the notes say so; a table point (no observation) brakes within its whole budget."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from planner.deadline import START_LEAD_S, Deadline
+from planner.deadline import ANSWER_LEAD_S, Deadline
 from planner.nlp.outcome import SolveOutcome
 from planner.plan_grasps import GraspSearch
 
@@ -45,7 +45,7 @@ def test_a_live_braking_ends_the_lead_before_its_approach_starts():
     search, grasp = _search(_live(10.0)), _Grasp()
     assert search._stabilize(grasp, 120).success and search.notes == []
     (given,) = grasp.deadlines
-    assert given.at_s == pytest.approx(search.deadline.observed_at_s + START_S - START_LEAD_S)
+    assert given.at_s == pytest.approx(search.deadline.observed_at_s + START_S - ANSWER_LEAD_S)
 
 
 def test_a_table_points_braking_keeps_its_whole_budget():
@@ -55,11 +55,11 @@ def test_a_table_points_braking_keeps_its_whole_budget():
 
 
 def test_a_grasp_whose_start_is_within_the_lead_is_not_braked_and_says_why():
-    """Observed 28 s ago, the approach at 32 s: braked now, the plan could not answer before its start."""
-    search, grasp = _search(_live(START_S - START_LEAD_S + 1.0)), _Grasp()
+    """Observed 31 s ago, the approach at 32 s: braked now, the plan could not answer before its start."""
+    search, grasp = _search(_live(START_S - ANSWER_LEAD_S + 1.0)), _Grasp()
     out = search._stabilize(grasp, None)
     assert grasp.deadlines == [] and out.status == SolveOutcome.OUT_OF_TIME and not out.success
-    assert search.notes == [f"the braking from the grasp at t = {START_S + 15.0:.1f} s stopped {START_LEAD_S:g} s "
+    assert search.notes == [f"the braking from the grasp at t = {START_S + 15.0:.1f} s stopped {ANSWER_LEAD_S:g} s "
                             f"before its approach's start ({START_S:.1f} s after the observation): braked later, the "
                             "plan would answer after it"]
     search._note_failure(grasp, out, "trying another grasp")  # not said twice
@@ -70,7 +70,8 @@ def test_a_braking_cut_at_the_lead_is_noted_once():
     search, grasp = _search(_live(10.0)), _Grasp(status=SolveOutcome.OUT_OF_TIME)
     out = search._stabilize(grasp, 120)
     assert len(grasp.deadlines) == 1 and out.status == SolveOutcome.OUT_OF_TIME
-    assert len(search.notes) == 1 and "stopped 5 s before its approach's start (32.0 s" in search.notes[0]
+    assert len(search.notes) == 1
+    assert f"stopped {ANSWER_LEAD_S:g} s before its approach's start (32.0 s" in search.notes[0]
     plan_out = _search(Deadline(time.monotonic() - 1.0))  # the plan's own budget ran out: its own note elsewhere
     plan_out._stabilize(_Grasp(), 120)
     assert plan_out.notes == []

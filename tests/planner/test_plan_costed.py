@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import planner.plan_costed as costed
-from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
+from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, Deadline
 from planner.nlp.costs import approach_energy
 
 START_S = 30.0  # the grasp's start delay [s after the observation], kept by every step
@@ -96,26 +96,26 @@ def test_past_the_deadline_no_step_is_tried(monkeypatch):
 
 
 def test_a_live_descent_ends_the_lead_before_its_approach_starts(monkeypatch):
-    """Every step keeps the meeting time, so a live plan's descent must end :data:`START_LEAD_S` before the approach's
+    """Every step keeps the meeting time, so a live plan's descent must end :data:`ANSWER_LEAD_S` before the approach's
     start (30 s after the observation), not at the budget's end (100 s): descending on, its answer would come after
     the start it plans. A table point (no observation) keeps its whole budget."""
     observed = time.monotonic()
     budget = Deadline.after(100.0, observed)
     stand = _Stand(np.array([-0.9, 0.9]), stable_m=10.0)
     _descend(monkeypatch, stand, budget.observed(observed))
-    assert [d.at_s for d in stand.deadlines] == [observed + START_S - START_LEAD_S]
+    assert [d.at_s for d in stand.deadlines] == [observed + START_S - ANSWER_LEAD_S]
     stand = _Stand(np.array([-0.9, 0.9]), stable_m=10.0)
     _descend(monkeypatch, stand, budget)
     assert [d.at_s for d in stand.deadlines] == [budget.at_s]
 
 
 def test_a_live_descent_whose_start_is_too_near_tries_no_step_and_says_why(monkeypatch):
-    """Observed 26 s ago, an approach starting at 30 s leaves less than the lead: no step, and a note."""
-    observed = time.monotonic() - (START_S - START_LEAD_S + 1.0)
+    """Observed 29 s ago, an approach starting at 30 s leaves less than the lead: no step, and a note."""
+    observed = time.monotonic() - (START_S - ANSWER_LEAD_S + 1.0)
     stand = _Stand(np.array([0.5, -0.5]), stable_m=10.0)
     d = _descend(monkeypatch, stand, Deadline.after(100.0, observed).observed(observed))
     assert stand.radii == [] and d.cost_end == d.cost_start
-    assert any(f"the descent stopped {START_LEAD_S:g} s before the approach's start at 30.0 s" in n for n in d.notes)
+    assert any(f"the descent stopped {ANSWER_LEAD_S:g} s before the approach's start at 30.0 s" in n for n in d.notes)
 
 
 class _Direct:
@@ -273,6 +273,23 @@ def test_scenario_II_energy_plans_feasible_no_costlier_than_its_feasibility_plan
     feasible = Planner(replace(sc, costs=sc.costs.without_approach_terms())).plan(state)
     assert verify(plan).feasible, verify(plan).violations
     assert approach_energy(plan.approach.base_offset_m) <= approach_energy(feasible.approach.base_offset_m) + 1e-12
+
+
+@pytest.mark.slow
+def test_scenario_II_energy_planned_live_answers_before_its_approach_starts():
+    """Planned live (its observation at the call), scenario II with Eq. 16 verifies feasible and its approach starts
+    after the plan and its verification are done: before, its costed optimum ran to half the budget, past every
+    meeting time the default state reaches (16-40 s), and the plan was refused as late."""
+    from planner.config.scenario import load_scenario
+    from planner.plan import Planner
+    from planner.verify.verifier import verify
+
+    sc = load_scenario("configs/scenarios/scenario_II_energy.toml")
+    planner = Planner(sc)
+    observed = time.monotonic()
+    plan = planner.plan(sc.target_state.as_state(), deadline=Deadline.after(100.0, observed).observed(observed))
+    assert verify(plan).feasible, verify(plan).violations
+    assert plan.approach.start_delay_s > time.monotonic() - observed
 
 
 def test_the_feasibility_stage_shares_all_but_the_approach_nlp():
