@@ -42,6 +42,8 @@ class SolveOutcome(StrEnum):
     GIVEN = "given"  # parameters used as given (a table query), no solve
     NO_GUESS_LEFT = "no scanned initial guess left to start from"
     NO_PINNED_START = "no reachable meeting time with the base pinned"
+    # a live plan's scanned meeting times all come before its answer can (the time since the observation and the lead)
+    NO_GUESS_IN_TIME = "no meeting time the scan reached comes after the answer can"
     TORQUE_BETWEEN_VIA_POINTS = "Torque_Over_Limit_Between_Via_Points"  # feasible at the via points only
     CLEARANCE_BETWEEN_VIA_POINTS = "Clearance_Under_Margin_Between_Via_Points"  # the same, for a collision pair
     REFUSED_BEFORE_GRASP = "Refused_Before_The_Grasp"  # not braked: verify refuses the plan before its grasp

@@ -83,10 +83,12 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     n_warm = 0 if warm_start is None else 1
     delay = problem.decision.slice("start_delay_s").start
+    too_early = 0  # scanned guesses not started from: they meet before a live plan's answer can come
     for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses), max_starts + n_warm)):
         if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
         if guess is not None and not meets_in_time(float(w0[delay]), deadline):
+            too_early += 1
             continue
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
@@ -106,9 +108,16 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         if result.success or budget_spent or problem.budget.out_of_time:
             break
     if result is None:
-        return _no_start(problem, SolveOutcome.NO_GUESS_LEFT, problem.scenario.base_offset_guess_m,
+        return _no_start(problem, _no_guess_status(problem, scan, too_early), problem.scenario.base_offset_guess_m,
                          time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _no_guess_status(problem: ApproachProblem, scan: ScanOnDemand, too_early: int) -> SolveOutcome:
+    """Why no NLP start was made: guesses meeting too early for a live plan (``too_early`` of them skipped, or a
+    scan of the window still in time that reached nothing), else none left."""
+    rescanned = scan.scenario.phases.min_start_delay_s > problem.scenario.phases.min_start_delay_s
+    return SolveOutcome.NO_GUESS_IN_TIME if too_early or rescanned else SolveOutcome.NO_GUESS_LEFT
 
 
 def _starts(warm_start: ApproachParameters | ApproachSolution | None, scan: ScanOnDemand,
@@ -217,14 +226,16 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     """The NLP with θ_b(0) within ``radius_m`` [m] of ``base_offset_m`` [m] (x, z) per axis (0: fixed there), from up
     to ``max_starts`` guesses scanned for that base, the first success; with ``max_iterations``, each start within
     :data:`COLD_START_ITERATIONS` and all within ``max_iterations``. Status ``NO_PINNED_START`` when no meeting time
-    is reachable from that base."""
+    is reachable from that base, ``NO_GUESS_IN_TIME`` when every one reachable comes before a live plan's answer
+    can."""
     t0 = time.perf_counter()
     bx, bz = (float(v) for v in base_offset_m)
     pinned = replace(problem.scenario, base_offset_bounds_m=((bx, bx), (bz, bz)),
                      base_offset_guess_m=np.array([bx, bz]))
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
     result, iterations = None, 0
-    for g in _guesses_in_time(pinned, problem, state, max_starts, deadline):
+    guesses, reached = _guesses_in_time(pinned, problem, state, max_starts, deadline)
+    for g in guesses:
         limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
                              max_iterations=limit, deadline=deadline)
@@ -233,22 +244,25 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
                 or (max_iterations is not None and iterations >= max_iterations):
             break
     if result is None:
-        return _no_start(problem, SolveOutcome.NO_PINNED_START, (bx, bz), time.perf_counter() - t0)
+        why = SolveOutcome.NO_GUESS_IN_TIME if reached else SolveOutcome.NO_PINNED_START
+        return _no_start(problem, why, (bx, bz), time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
 
 
 def _guesses_in_time(scenario: Scenario, problem: ApproachProblem, state: TargetState, count: int,
-                     deadline: Deadline) -> list[ApproachGuess]:
+                     deadline: Deadline) -> tuple[list[ApproachGuess], bool]:
     """Up to ``count`` guesses scanned for ``scenario`` that meet in time under ``deadline``: those of the whole
     window's scan, or, when none of them does, of a scan of the window still in time
-    (:func:`~planner.phases.scan_in_time.window_in_time`)."""
+    (:func:`~planner.phases.scan_in_time.window_in_time`); and whether the whole window's scan reached a meeting time
+    at all."""
     scan = reach_scan(scenario, problem.spline, state, count, held_angles=False)
+    reached = bool(scan.guesses)
     on_time = [g for g in scan.guesses if meets_in_time(g.start_delay_s, deadline)]
     later = window_in_time(scenario, deadline)
     if scan.guesses and not on_time and later is not scenario:
         scan = reach_scan(later, problem.spline, state, count, held_angles=False)
         on_time = [g for g in scan.guesses if meets_in_time(g.start_delay_s, deadline)]
-    return on_time[:count]
+    return on_time[:count], reached
 
 
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,

@@ -14,6 +14,7 @@ import pytest
 import planner.phases.approach_solve as approach_solve
 from planner.config.scenario import load_scenario
 from planner.deadline import START_LEAD_S, Deadline
+from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import ScanOnDemand
 from planner.phases.reach_scan_result import DELAY_STEP_S, ApproachGuess, ReachScan
@@ -99,7 +100,7 @@ def test_an_approach_from_another_base_scans_the_window_still_in_time(scenario_I
     monkeypatch.setattr(approach_solve, "replace", lambda result, **kwargs: result)
     state = scenario_I.target_state.as_state()
     out = approach_solve.solve_approach_from_base(problem, state, np.zeros(2), 1, 1.0, _live(SINCE_S))
-    assert not out.success and started == [] and len(scanned) == 2
+    assert not out.success and started == [] and len(scanned) == 2 and out.status == SolveOutcome.NO_GUESS_IN_TIME
     assert scanned[0] == scenario_I.phases.start_delay_window_s
     assert scanned[1][0] >= SINCE_S + START_LEAD_S + DELAY_STEP_S
     scanned.clear()
@@ -118,3 +119,18 @@ def test_a_grasp_search_whose_scan_came_too_early_plans_after_its_answer(scenari
     candidate, stab = search.run()
     assert candidate.app.success and stab.success
     assert candidate.app.start_delay_s >= SINCE_S + START_LEAD_S
+
+
+@pytest.mark.parametrize(("delays_s", "status"), [((5.0, 9.0), SolveOutcome.NO_GUESS_IN_TIME),
+                                                  ((), SolveOutcome.NO_GUESS_LEFT)])
+def test_an_approach_with_no_start_says_whether_its_guesses_came_too_early(scenario_I, delays_s, status):
+    """Every scanned guess before the answer can come (13 s after the observation: the earliest start ~18 s): the
+    approach says so, not that no guess was left; with no guess at all (the degenerate scan), none left."""
+    problem = Planner(scenario_I).approach
+    guesses = [ApproachGuess(np.zeros(problem.n_params), np.zeros(2), t, np.zeros(7),
+                             np.zeros((len(TRACKING_NODES), 7)), 0.1) for t in delays_s]
+    scan = SimpleNamespace(serves=lambda state, count: True, scenario=scenario_I,
+                           result=SimpleNamespace(guesses=guesses))
+    out = approach_solve.solve_approach(problem, scenario_I.target_state.as_state(), max_starts=3, scan=scan,
+                                        deadline=_live(SINCE_S))
+    assert not out.success and out.iterations == 0 and out.status == status
