@@ -61,10 +61,7 @@ class Deadline:
         if self.observed_at_s is None:
             return self
         start_by_s = self.observed_at_s + start_delay_s - ANSWER_LEAD_S
-        if start_by_s >= self.at_s:
-            return self
-        what = f"the time before the approach's start at {start_delay_s:.1f} s"
-        return Deadline(start_by_s, what, self.observed_at_s)
+        return self if start_by_s >= self.at_s else Deadline(start_by_s, self.what, self.observed_at_s)
 
     def earliest_start_s(self) -> float:
         """The earliest start delay [s after the observation] an approach solved now may take: the time since the

@@ -175,7 +175,7 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
             radius = 2 * radius if np.isfinite(radius) else 0.0  # a full step kept is this meeting time's optimum
         else:
             radius = FIRST_RADIUS_M if not np.isfinite(radius) else radius / 2
-    if in_time.passed and in_time.at_s < deadline.at_s:
+    if in_time.passed and in_time is not deadline:
         out.notes.append(f"costed plan: the descent stopped {ANSWER_LEAD_S:g} s before the approach's start at "
                          f"{out.candidate.app.start_delay_s:.1f} s after the observation, so that the plan answers "
                          "before it")

@@ -114,8 +114,11 @@ class ScanOnDemand:
     plan makes a new one, so planning a state again costs what a new state costs.
     """
 
-    def __init__(self, scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int) -> None:
+    def __init__(self, scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, count: int,
+                 held_angles: bool = True) -> None:
+        """``held_angles``: as :func:`reach_scan`'s."""
         self.scenario, self.spline, self.state, self.count = scenario, spline, state, count
+        self.held_angles = held_angles
         self._result: ReachScan | None = None
 
     def serves(self, state: TargetState, count: int) -> bool:
@@ -132,7 +135,7 @@ class ScanOnDemand:
     def result(self) -> ReachScan:
         """The scan (made on the first call)."""
         if self._result is None:
-            self._result = reach_scan(self.scenario, self.spline, self.state, self.count)
+            self._result = reach_scan(self.scenario, self.spline, self.state, self.count, self.held_angles)
         return self._result
 
 

@@ -20,8 +20,8 @@ from planner.deadline import NO_DEADLINE, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
-from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, angles_apart, reach_scan
-from planner.phases.scan_in_time import meets_in_time, window_in_time
+from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, angles_apart
+from planner.phases.scan_in_time import meets_in_time, scan_in_time
 from planner.phases.tracking_profile import TRACKING_NODES
 from planner.plan_parameters import ApproachParameters
 
@@ -251,18 +251,13 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
 
 def _guesses_in_time(scenario: Scenario, problem: ApproachProblem, state: TargetState, count: int,
                      deadline: Deadline) -> tuple[list[ApproachGuess], bool]:
-    """Up to ``count`` guesses scanned for ``scenario`` that meet in time under ``deadline``: those of the whole
-    window's scan, or, when none of them does, of a scan of the window still in time
-    (:func:`~planner.phases.scan_in_time.window_in_time`); and whether the whole window's scan reached a meeting time
-    at all."""
-    scan = reach_scan(scenario, problem.spline, state, count, held_angles=False)
-    reached = bool(scan.guesses)
-    on_time = [g for g in scan.guesses if meets_in_time(g.start_delay_s, deadline)]
-    later = window_in_time(scenario, deadline)
-    if scan.guesses and not on_time and later is not scenario:
-        scan = reach_scan(later, problem.spline, state, count, held_angles=False)
-        on_time = [g for g in scan.guesses if meets_in_time(g.start_delay_s, deadline)]
-    return on_time[:count], reached
+    """Up to ``count`` guesses scanned for ``scenario`` that meet in time under ``deadline`` (those of the whole
+    window's scan, else of the window still in time: :func:`~planner.phases.scan_in_time.scan_in_time`), and whether
+    the whole window's scan reached a meeting time at all."""
+    whole = ScanOnDemand(scenario, problem.spline, state, count, held_angles=False)
+    reached = bool(whole.result.guesses)
+    in_time = scan_in_time(whole, deadline).result.guesses
+    return [g for g in in_time if meets_in_time(g.start_delay_s, deadline)][:count], reached
 
 
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,

@@ -40,9 +40,11 @@ def window_in_time(scenario: Scenario, deadline: Deadline) -> Scenario:
 
 
 def scan_in_time(scan: ScanOnDemand, deadline: Deadline) -> ScanOnDemand:
-    """``scan``, or, when it was made and none of its guesses meets in time under ``deadline`` any more, a scan of the
-    same state over :func:`window_in_time` (made when first asked for)."""
-    if not scan.made or any(meets_in_time(g.start_delay_s, deadline) for g in scan.result.guesses):
+    """``scan``, or, when it was made, has guesses and none of them meets in time under ``deadline`` any more, a scan
+    of the same state over :func:`window_in_time` (made when first asked for; a scan that reached nothing is kept)."""
+    guesses = scan.result.guesses if scan.made else []
+    if not guesses or any(meets_in_time(g.start_delay_s, deadline) for g in guesses):
         return scan
     later = window_in_time(scan.scenario, deadline)
-    return scan if later is scan.scenario else ScanOnDemand(later, scan.spline, scan.state, scan.count)
+    return scan if later is scan.scenario else ScanOnDemand(later, scan.spline, scan.state, scan.count,
+                                                            scan.held_angles)

@@ -44,7 +44,7 @@ def test_a_live_plan_must_stop_solving_the_lead_before_its_approach_starts():
     budget = Deadline.after(100.0, observed)
     live = budget.observed(observed)
     assert live.in_time_for(30.0).at_s == observed + 30.0 - ANSWER_LEAD_S
-    assert live.in_time_for(30.0).observed_at_s == observed and "30.0 s" in live.in_time_for(30.0).what
+    assert live.in_time_for(30.0).observed_at_s == observed and live.in_time_for(30.0).what == live.what
     assert live.in_time_for(100.0 + ANSWER_LEAD_S) == live  # the start's lead ends with the budget: the budget's
     assert live.in_time_for(200.0) == live
     assert budget.in_time_for(0.0) == budget and NO_DEADLINE.in_time_for(0.0) == NO_DEADLINE  # no observation

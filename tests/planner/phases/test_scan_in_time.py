@@ -4,6 +4,7 @@ grasp search handed a scan whose every guess is too early finding an approach th
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from types import SimpleNamespace
@@ -11,6 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import planner.phases.approach_guess as approach_guess
 import planner.phases.approach_solve as approach_solve
 from planner.config.scenario import load_scenario
 from planner.deadline import START_LEAD_S, Deadline
@@ -66,6 +68,31 @@ def test_the_window_opens_a_scan_step_after_the_earliest_start(scenario_I):
     assert window_in_time(own, _live(SINCE_S)) is own  # the scenario's own window starts later still
 
 
+def _earliest_at(earliest_s: float) -> SimpleNamespace:
+    """A deadline whose earliest start is ``earliest_s`` exactly (the clock left out: the edges are exact)."""
+    return SimpleNamespace(earliest_start_s=lambda: earliest_s)
+
+
+@pytest.mark.parametrize(("earliest_s", "opens_s"), [
+    (18.0, 20.0),  # one step after lands on the grid: there
+    (18.0 + 1e-9, 22.0),  # a hair past it: the next meeting time of the grid
+    (-DELAY_STEP_S, None),  # one step after is the window's own start: unchanged
+    (-math.inf, None),  # no observation
+    (88.0, 90.0),  # one step after is the latest start: a window of one meeting time
+    (88.0 + 1e-9, None),  # past it: the window would close, unchanged (the plan is judged late)
+])
+def test_the_windows_edges(scenario_I, earliest_s, opens_s):
+    later = window_in_time(scenario_I, _earliest_at(earliest_s))
+    if opens_s is None:
+        assert later is scenario_I
+    else:
+        assert later.phases.start_delay_window_s == (opens_s, scenario_I.phases.max_start_delay_s)
+
+
+def test_a_guess_exactly_one_scan_step_before_the_earliest_start_is_in_time():
+    assert meets_in_time(18.0, _earliest_at(20.0)) and not meets_in_time(18.0 - 1e-9, _earliest_at(20.0))
+
+
 def test_a_scan_is_made_again_only_when_none_of_its_guesses_is_in_time(scenario_I):
     sc, state = scenario_I, scenario_I.target_state.as_state()
     fresh = ScanOnDemand(sc, approach_spline(sc), state, 3)
@@ -74,6 +101,9 @@ def test_a_scan_is_made_again_only_when_none_of_its_guesses_is_in_time(scenario_
     assert scan_in_time(in_time, _live(SINCE_S)) is in_time
     stale = _stale_scan(sc, state)
     assert scan_in_time(stale, Deadline.after(100.0)) is stale  # offline: every guess serves
+    empty = _stale_scan(sc, state)
+    empty._result = ReachScan([], sc.phases.start_delay_window_s, ())
+    assert scan_in_time(empty, _live(SINCE_S)) is empty  # it reached nothing: kept (the plan answers out of reach)
     again = scan_in_time(stale, _live(SINCE_S))
     assert again is not stale and not again.made and again.count == stale.count
     window = again.scenario.phases.start_delay_window_s
@@ -93,7 +123,7 @@ def test_an_approach_from_another_base_scans_the_window_still_in_time(scenario_I
         scanned.append(sc.phases.start_delay_window_s)
         return ReachScan([early] if len(scanned) == 1 else [], sc.phases.start_delay_window_s, ())
 
-    monkeypatch.setattr(approach_solve, "reach_scan", recorded)
+    monkeypatch.setattr(approach_guess, "reach_scan", recorded)
     started: list[float] = []
     monkeypatch.setattr(approach_solve, "_solve_once", lambda problem, state, w0, *args, **kwargs: started.append(
         float(w0[problem.decision.slice("start_delay_s").start])) or SimpleNamespace(success=False, iterations=1))
