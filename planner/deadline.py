@@ -63,12 +63,13 @@ class Deadline:
         start_by_s = self.observed_at_s + start_delay_s - ANSWER_LEAD_S
         return self if start_by_s >= self.at_s else Deadline(start_by_s, self.what, self.observed_at_s)
 
-    def earliest_start_s(self) -> float:
+    def earliest_start_s(self, lead_s: float | None = None) -> float:
         """The earliest start delay [s after the observation] an approach solved now may take: the time since the
-        observation and :data:`START_LEAD_S` for the rest of the plan (``-inf`` without an observation)."""
+        observation and ``lead_s`` [s] for the rest of the plan (default :data:`START_LEAD_S`; ``-inf`` without an
+        observation)."""
         if self.observed_at_s is None:
             return -math.inf
-        return time.monotonic() - self.observed_at_s + START_LEAD_S
+        return time.monotonic() - self.observed_at_s + (START_LEAD_S if lead_s is None else lead_s)
 
 
 NO_DEADLINE = Deadline()

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from lut.cli import process_end
-from lut.cli.options import check_budget, check_plan_outputs, parse_floats
+from lut.cli.options import check_budget, check_plan_outputs, parse_floats, with_earliest_start
 from lut.cli.plan_output import cost_table, export_and_verdict, plan_table, query_block, refuse_without_plan
 from lut.cli.user_errors import user_errors
 from planner.errors import LutgenError
@@ -173,6 +173,11 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
 @click.option("--budget-s", type=float, default=100.0, show_default=True,
               help="Time budget of the whole query (s), from the command's start: table load, interpolation, "
                    "verification and every solve; a solve still running at it ends with its best plan.")
+@click.option("--earliest-start-s", type=float, default=None,
+              help="The approach starts no earlier than this (s) after the observation (default: the scenario's "
+                   "phases.min_start_delay_s): room to look at the plan and move the chaser to its base offset. A "
+                   "table plan that would start sooner starts a spin period later or is not tried; a solve's "
+                   "approach starts no sooner.")
 @click.option("--scenario", "scenario_path", type=click.Path(dir_okay=False), default=None,
               help="Scenario file, if it moved since the build.")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None, help="Write the plan JSON here.")
@@ -187,8 +192,8 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
 @click.option("-j", "--jobs", type=int, default=1, show_default=True, help="With --robust: worker processes.")
 @user_errors
 def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget_s: float,
-          scenario_path: str | None, out_path: str | None, csv_path: str | None, robust_sigmas: str | None,
-          robust_samples: int, seed: int, jobs: int) -> None:
+          earliest_start_s: float | None, scenario_path: str | None, out_path: str | None, csv_path: str | None,
+          robust_sigmas: str | None, robust_samples: int, seed: int, jobs: int) -> None:
     """Turn an observed target state into a verified plan from a look-up table.
 
     With --robust, the most robust of the plans the query can produce is returned, with its success
@@ -213,6 +218,8 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     tq = TableQuery(table_path, scenario_path)
     check_plan_outputs([table_path, tq.scenario_path, *tq.scenario.input_files],
                        out_path, csv_path)
+    with_earliest_start(tq.scenario, earliest_start_s)  # checked against the table's scenario's window
+    tq.earliest_start_s = earliest_start_s
     try:
         if robust is not None:
             _robust_query(tq, state, robust, budget_s, out_path, csv_path, started_s)
@@ -222,6 +229,9 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
         refuse_without_plan(exc, time.monotonic() - started_s, out_path, csv_path)
     for note in result.notes:
         click.echo(f"note: {note}; planned and verified at the observed state")
+    if result.late:
+        click.echo(f"note: not tried, starting too soon (before this answer could come, or --earliest-start-s): "
+                   f"{'; '.join(result.late)}")
     for line in plan_table(result.plan, result.report):
         click.echo(line)
     for line in summary_lines(result.report):

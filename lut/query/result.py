@@ -52,3 +52,4 @@ class QueryResult:
     refine_failure: str = ""
     notes: tuple[str, ...] = ()  # how the state differs from where the table answered (off its family or grid)
     costs: tuple[CostBreakdown, ...] = ()  # the plan's weighted cost terms, then each used corner's (none: all 0)
+    late: tuple[str, ...] = ()  # the table plans not tried: they would have started before the answer (which, when)

@@ -114,8 +114,9 @@ def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, bud
         if time_left() < cost_s:
             break
         c0 = time.perf_counter()
-        judged.append(_judge(tq, states, f"corner {c.corner}", QuerySource.NEAREST,
-                             *tq.simulate_and_verify(state, c.parameters, {}), request))
+        made = tq.verified(state, c.parameters, [c.corner], QuerySource.NEAREST, {})
+        if made is not None:  # else it would start before the answer
+            judged.append(_judge(tq, states, f"corner {c.corner}", QuerySource.NEAREST, *made[:2], request))
         cost_s = max(cost_s, time.perf_counter() - c0)
     found, failure = tq.interpolate(state), ""
     if refine and found is not None and plain.source not in (QuerySource.REFINED, QuerySource.SOLVED_COLD) \

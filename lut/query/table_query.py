@@ -35,6 +35,7 @@ from lut.query.least_violating import violates_less, violation
 from lut.query.result import QueryResult, QuerySource, TableAnswer
 from lut.query.stabilization_repair import repaired_plan, single_cause, stabilization_only
 from lut.query.table_checks import check_parameters, parameter_shapes
+from lut.query.table_start import placed_start_s, table_period_s
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
 from lut.solve.point_worker import WARM_SHARE
 from lut.table.grid import Grid
@@ -47,7 +48,7 @@ from lut.table.records import from_record
 from lut.table.schema import TableError
 from lut.table.store import Table
 from planner.config.scenario import Scenario, load_scenario
-from planner.deadline import Deadline
+from planner.deadline import ANSWER_LEAD_S, Deadline
 from planner.model.target import TargetState
 from planner.phases.approach_guess import reach_scan
 from planner.plan import GraspPlan, NoPlan, OutOfReach, Planner
@@ -55,7 +56,6 @@ from planner.plan_grasps import GRASP_GUESSES
 from planner.plan_parameters import PlanParameters
 from planner.verify.verifier import VerifyReport, verify
 
-PERIOD_FREE = float("inf")  # the spin period of a target that does not spin [s]
 FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]
 MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
 # a warm refine of an infeasible interpolated plan gets the build's WARM_SHARE of the time left when a cold solve
@@ -79,7 +79,7 @@ class TableQuery:
     def __init__(self, table_path: str | Path, scenario_path: str | Path | None = None) -> None:
         t0 = time.perf_counter()
         self.table = Table.open(table_path)
-        path = Path(scenario_path) if scenario_path is not None else _stored_scenario(self.table, Path(table_path))
+        path = Path(scenario_path) if scenario_path is not None else self.table.scenario_file()
         self.scenario: Scenario = load_scenario(path)
         self.table.check_model(table_hash(self.scenario), str(path))
         config = load_grid_text(self.table.attrs["config_text"], str(table_path), path)
@@ -93,7 +93,9 @@ class TableQuery:
         self.feasible = [p for p, r in self.points.items() if r.status is PointStatus.FEASIBLE]
         self.scorer = CostScorer(self.scenario, self.planner.ff, self.planner.approach.spline)
         self._corner_costs: dict[int, CostBreakdown] = {}  # point → its stored plan's cost terms (corner_costs)
-        self.observed_at_s: float | None = None  # the query in progress's observation (time.monotonic()), for refine
+        self.observed_at_s: float | None = None  # the query in progress's observation (time.monotonic())
+        self.late: list[str] = []  # the query in progress's table plans not tried: they would start before its answer
+        self.earliest_start_s: float | None = None  # [s after the observation] --earliest-start-s; None: the scenario's
         self.load_time_s = time.perf_counter() - t0
 
     # ---- lookup + interpolation ------------------------------------------------------------
@@ -103,7 +105,7 @@ class TableQuery:
         nearest feasible point's; ``None`` when the table has no feasible point."""
         projection = project_to_grid(self.grid, state)
         coords = projection.coords
-        period = _spin_period_s(state)
+        period = self.period_s(state)
         candidates = self.corner_candidates(state)
         if candidates:
             group = consistent_group(cheapest(candidates), period)
@@ -120,7 +122,7 @@ class TableQuery:
         """The feasible corners (weight > 0) of ``state``'s cell, their parameters carried to its spin phase."""
         coords = project_to_grid(self.grid, state).coords
         cell = self.grid.locate(coords)
-        period = _spin_period_s(state)
+        period = self.period_s(state)
         candidates = []
         for corner, weight in zip(cell.corners, cell.weights, strict=True):
             point = self.points[corner]
@@ -131,6 +133,10 @@ class TableQuery:
             cost = 0.0 if self.scorer.feasibility_only else self.corner_costs(corner).total
             candidates.append(Candidate(corner, float(weight), carried, cost))
         return candidates
+
+    def period_s(self, state: TargetState) -> float:
+        """The period [s] by which the table's plans may start later at ``state`` (:func:`table_period_s`)."""
+        return table_period_s(state, self.scenario.target.inertia_body_kg_m2, self.grid.kind == "flat_spin")
 
     def phase_shift_s(self, point: int, coords: NDArray[np.float64]) -> float:
         """Start-delay shift [s] carrying grid point ``point``'s plan to ``coords`` (flat-spin symmetry): the target's
@@ -151,16 +157,17 @@ class TableQuery:
         :data:`WARM_REFINE_CAP_S`, so that the cold solve after it (if it gives no feasible plan) has the rest.
         """
         t_start = time.perf_counter()
-        deadline = Deadline.after(budget_s, since_s)
         self.observed_at_s = time.monotonic() if since_s is None else since_s  # the observation: the refine's too
+        deadline, self.late = Deadline.after(budget_s, since_s).observed(self.observed_at_s), []
         latency: dict[str, float] = {}
         found = self.interpolate(state)
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
         plan = report = None
         source = QuerySource.SOLVED_COLD
         corners = found.corners if found is not None else []
-        if found is not None:
-            plan, report, corners, source = self.table_plan(state, found, deadline, latency, refine)
+        made = None if found is None else self.table_plan(state, found, deadline, latency, refine)
+        if made is not None:
+            plan, report, corners, source = made
         # warm from the table's answer first, then cold (with its retries over grasps) in what the budget has left
         attempts = [(None, QuerySource.SOLVED_COLD)]
         if found is not None:
@@ -190,11 +197,13 @@ class TableQuery:
             refine = False  # an asked-for refine is the warm one; the cold solve only stands in for a missing plan
         if plan is None or report is None:
             why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
-            raise NoPlan(f"no plan: the table has no feasible point near this state and the solve gave none: {why}")
+            near = ("the table has no feasible point near this state" if not self.late else
+                    f"the table's plans near this state would start too soon ({'; '.join(self.late)})")
+            raise NoPlan(f"no plan: {near} and the solve gave none: {why}")
         costs = self.cost_breakdowns(plan, report, corners)
         latency["total_s"] = time.perf_counter() - t_start
         return QueryResult(plan, report, source, corners, latency, refine_failure,
-                           found.notes if found is not None else (), costs)
+                           found.notes if found is not None else (), costs, tuple(self.late))
 
     def out_of_reach(self, state: TargetState, t_start: float) -> OutOfReach | None:
         """Why no solve can plan ``state`` when no meeting time of the window brings the grasp within the arm's reach
@@ -220,14 +229,14 @@ class TableQuery:
         return self._corner_costs[point]
 
     def table_plan(self, state: TargetState, found: TableAnswer, deadline: Deadline, latency: dict[str, float],
-                   refine: bool) -> Attempt:
-        """The table's own plan at ``state``: ``found`` re-simulated and verified; unless a refine was asked for and
-        while it is not feasible, the table's plans repaired (:meth:`repaired`): the nearest point's alone, an
-        interpolation's with its corners' own plans (:meth:`corner_plan`). Returns the plan, its report, the corners
-        it came from and its source: the first feasible one, else the least violating."""
-        plan, report = self.simulate_and_verify(state, found.parameters, latency)
-        first = plan, report, found.corners, found.source
-        if report.feasible or refine:
+                   refine: bool) -> Attempt | None:
+        """The table's own plan at ``state``: ``found`` re-simulated and verified (:meth:`verified`); unless a refine
+        was asked for and while it is not feasible, the table's plans repaired (:meth:`repaired`): the nearest point's
+        alone, an interpolation's with its corners' own plans (:meth:`corner_plan`). Returns the plan, its report, the
+        corners it came from and its source: the first feasible one, else the least violating; None when every plan
+        tried would start before the answer."""
+        first = self.verified(state, found.parameters, found.corners, found.source, latency)
+        if refine or (first is not None and first[1].feasible):
             return first
         t0 = time.perf_counter()
         latency["repair_s"] = 0.0
@@ -235,18 +244,19 @@ class TableQuery:
             best = self.corner_plan(state, found, first, deadline, latency)
             latency["corners_s"] = time.perf_counter() - t0
             return best
-        fixed = self.repaired(plan, report, deadline)
+        fixed = None if first is None else self.repaired(first[0], first[1], deadline)
         latency["repair_s"] = time.perf_counter() - t0
         return first if fixed is None else (*fixed, found.corners, QuerySource.REPAIRED)
 
-    def corner_plan(self, state: TargetState, found: TableAnswer, first: Attempt, deadline: Deadline,
-                    latency: dict[str, float]) -> Attempt:
-        """The interpolated plan (``first``, verified) repaired, or the first of the cell's feasible corners (at most
-        :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`; those at the cell's lowest cost first, each group
-        heaviest first; the interpolation's own corner when it is one corner's plan is not tried twice) whose own
-        plan, carried to ``state``'s phase, verifies feasible there, as it is (source ``corner``) or with its
-        stabilization repaired (``repaired``): ``(plan, report, corners, source)``; if none does in time, the least
-        violating of those made (:mod:`lut.query.least_violating`).
+    def corner_plan(self, state: TargetState, found: TableAnswer, first: Attempt | None, deadline: Deadline,
+                    latency: dict[str, float]) -> Attempt | None:
+        """The interpolated plan (``first``, verified; None when late) repaired, or the first of the cell's feasible
+        corners (at most :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`; those at the cell's lowest cost
+        first, each group heaviest first; the interpolation's own corner when it is one corner's plan is not tried
+        twice; none that would start before the answer) whose own plan, carried to ``state``'s phase, verifies feasible
+        there, as it is (source ``corner``) or with its stabilization repaired (``repaired``): ``(plan, report,
+        corners, source)``; if none does in time, the least violating of those made
+        (:mod:`lut.query.least_violating`); None when none was made.
 
         A plan whose failure has one cause (:func:`~lut.query.stabilization_repair.single_cause`) is repaired at once;
         one whose braking is too harsh while its arm also hits a limit or a body only once every corner has been
@@ -258,20 +268,21 @@ class TableQuery:
         """
         later: list[Attempt] = []  # the both-cause plans, repaired last
         best, stage = first, Deadline.after(CORNER_STAGE_S)
-        fixed = self._repair_now_or_later(first, deadline, latency, later)
+        fixed = None if first is None else self._repair_now_or_later(first, deadline, latency, later)
         if fixed is not None:
             return fixed
         for candidate in self.corner_order([c for c in self.corner_candidates(state) if [c.corner] != found.corners]):
             if self._corners_out_of_time(deadline, stage):
                 break
-            plan, report = self.simulate_and_verify(state, candidate.parameters, {})
-            made = plan, report, [candidate.corner], QuerySource.CORNER
-            if report.feasible:
+            made = self.verified(state, candidate.parameters, [candidate.corner], QuerySource.CORNER, {})
+            if made is None:
+                continue
+            if made[1].feasible:
                 return made
             fixed = self._repair_now_or_later(made, deadline, latency, later)
             if fixed is not None:
                 return fixed
-            if violates_less(report, best[1]):
+            if best is None or violates_less(made[1], best[1]):
                 best = made
         # fewest failed checks first; the count alone, so that ties keep the order they were tried in
         for made in sorted(later, key=lambda attempt: violation(attempt[1])[0]):
@@ -322,24 +333,46 @@ class TableQuery:
         and the repair verifies feasible; else None."""
         if deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S:
             return None
-        return repaired_plan(self.planner, plan, report, deadline.earlier(FINISH_RESERVE_S))
+        in_time = deadline.earlier(FINISH_RESERVE_S).in_time_for(plan.approach.start_delay_s)
+        return repaired_plan(self.planner, plan, report, in_time)
+
+    def verified(self, state: TargetState, parameters: PlanParameters, corners: list[int], source: QuerySource,
+                 latency: dict[str, float]) -> Attempt | None:
+        """The table plan of ``parameters`` placed in time (:meth:`placed`), re-simulated at ``state`` and verified, as
+        the attempt of ``corners`` from ``source``; None, noted in :attr:`late`, when it would start before the
+        answer."""
+        placed = self.placed(state, parameters)
+        if placed is None:
+            tau = placed_start_s(parameters.approach.start_delay_s, self.period_s(state),
+                                 self.scenario.phases.start_delay_window_s)
+            self.late.append(f"the {source} plan of points {corners} at {tau:.2f} s")
+            return None
+        return (*self.simulate_and_verify(state, placed, latency), corners, source)
+
+    def placed(self, state: TargetState, parameters: PlanParameters) -> PlanParameters | None:
+        """A table plan's ``parameters`` (carried to ``state``'s phase) with the start :func:`placed_start_s` gives:
+        in the window by whole periods (:meth:`period_s`) and, in a query, :data:`~planner.deadline.ANSWER_LEAD_S`
+        after now and at :attr:`earliest_start_s` at least; the same object when unmoved; None when no such start is
+        in the window."""
+        earliest = Deadline(observed_at_s=self.observed_at_s).earliest_start_s(ANSWER_LEAD_S)
+        tau = parameters.approach.start_delay_s
+        if self.earliest_start_s is not None:
+            earliest = max(earliest, self.earliest_start_s)
+        placed = placed_start_s(tau, self.period_s(state), self.scenario.phases.start_delay_window_s, earliest)
+        if placed is None or placed == tau:
+            return None if placed is None else parameters
+        return parameters.with_start_delay(placed)
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:
-        """The plan of ``parameters`` re-simulated at ``state`` (start delay wrapped into the window), verified."""
+        """The plan of ``parameters`` (its start delay as given) re-simulated at ``state``, verified."""
         t0 = time.perf_counter()
-        plan = self.planner.simulate(state, self._in_window(state, parameters))
+        plan = self.planner.simulate(state, parameters)
         latency["simulate_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         report = verify(plan)
         latency["verify_s"] = time.perf_counter() - t0
         return plan, report
-
-    def _in_window(self, state: TargetState, parameters: PlanParameters) -> PlanParameters:
-        """``parameters`` with the start delay wrapped into the scenario's window by whole spin periods."""
-        rate = float(np.linalg.norm(state.omega_body_rad_s))
-        return parameters.shifted_in_time(0.0, 2 * np.pi / rate if rate > 0 else None,
-                                          self.scenario.phases.start_delay_window_s)
 
     def refine(self, state: TargetState, warm: PlanParameters | None, budget_s: float) -> PointResult:
         """A solve warm-started from ``warm`` (cold without) in a child process with a hard time limit [s].
@@ -352,22 +385,11 @@ class TableQuery:
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
                          max_wall_s=max(1.0, budget_s / 2), plan_budget_s=budget_s,
                          timeout_name="the refine's share of --budget-s",
-                         solver_kwargs=None if self.observed_at_s is None else {"observed_at_s": self.observed_at_s})
+                         solver_kwargs=self._solver_kwargs())
 
+    def _solver_kwargs(self) -> dict[str, float]:
+        """What a solve of the query in progress needs to know: its observation's instant, the operator's earliest
+        start."""
+        given = {"observed_at_s": self.observed_at_s, "earliest_start_s": self.earliest_start_s}
+        return {k: v for k, v in given.items() if v is not None}
 
-def _spin_period_s(state: TargetState) -> float:
-    """The target's spin period 2π/|ω| [s] (:data:`PERIOD_FREE` at rest)."""
-    rate = float(np.linalg.norm(state.omega_body_rad_s))
-    return 2 * np.pi / rate if rate > 0 else PERIOD_FREE
-
-
-def _stored_scenario(table: Table, table_path: Path) -> Path:
-    """The scenario file a table names (stored relative to the table's folder)."""
-    stored = table.attrs.get("scenario_path")
-    if not stored:
-        raise TableError(f"{table_path}: the table does not name its scenario; pass --scenario")
-    path = table_path.absolute().parent / stored
-    if not path.is_file():
-        raise TableError(f"{table_path}: its scenario {stored} (relative to the table) is not there; "
-                         "pass --scenario")
-    return path

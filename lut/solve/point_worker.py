@@ -37,6 +37,7 @@ from lut.table.records import (
     to_record,
 )
 from planner.deadline import NO_DEADLINE, VERIFY_RESERVE_S, Deadline
+from planner.model.spin_period import repeat_period_s
 from planner.plan_parameters import PlanParameters
 
 if TYPE_CHECKING:
@@ -58,7 +59,8 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
                 omega_body_rad_s: NDArray[np.float64], warm: PlanParameters | None, warm_shift_s: float,
                 max_wall_s: float | None = None, deadline_at_s: float | None = None, cold_fallback: bool = False,
                 robust_attitude_sigma_deg: float | None = None, robust_rate_sigma_deg_s: float = 0.0,
-                robust_samples: int = 0, observed_at_s: float | None = None) -> Record:
+                robust_samples: int = 0, observed_at_s: float | None = None,
+                earliest_start_s: float | None = None) -> Record:
     """Plan and verify one target state (attitude ``(4,)`` w, x, y, z; body rates ``(3,)`` [rad/s]); warm-started
     from a neighbour's parameters, shifted in time by ``warm_shift_s`` [s], when given.
 
@@ -70,16 +72,16 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
     With ``robust_attitude_sigma_deg`` [deg] (and the rate σ [deg/s]) a feasible point also gets its robustness
     figure over ``robust_samples`` drawn states (``lutgen build --robust``). ``observed_at_s``: the instant of a
     live observation (a query's refine): its approaches start no earlier than its answer can come
-    (:meth:`planner.deadline.Deadline.earliest_start_s`).
+    (:meth:`planner.deadline.Deadline.earliest_start_s`). ``earliest_start_s`` [s after the observation]: the
+    approach starts no earlier (the scenario's ``phases.min_start_delay_s`` raised: a query's ``--earliest-start-s``).
     """
     from planner.model.target import TargetState
 
-    planner = _planner(scenario_path, max_wall_s)
+    planner = _planner(scenario_path, max_wall_s, earliest_start_s)
     state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
     warm_start = None
-    if warm is not None:
-        rate = float(np.linalg.norm(omega_body_rad_s))
-        period = 2 * np.pi / rate if rate > 0 else None
+    if warm is not None:  # moved by whole periods only where the motion repeats: not for a tumble
+        period = repeat_period_s(state, planner.scenario.target.inertia_body_kg_m2)
         warm_start = warm.shifted_in_time(warm_shift_s, period, planner.scenario.phases.start_delay_window_s)
     t0 = time.perf_counter()
     deadline = plan_deadline(deadline_at_s, observed_at_s)
@@ -133,19 +135,21 @@ def verified_plan(planner: Planner, point: int, state: TargetState, warm_start: 
     return result_from_plan(point, plan, verify(plan))
 
 
-def _planner(scenario_path: str, max_wall_s: float | None) -> Planner:
-    """The planner of ``scenario_path`` as its files are now (built once per process, model and wall-time limit [s]:
-    a kept process serves later builds too, and an edited scenario, robot or target gets a new planner); the
-    :data:`PLANNERS_KEPT` last used are kept."""
+def _planner(scenario_path: str, max_wall_s: float | None, earliest_start_s: float | None = None) -> Planner:
+    """The planner of ``scenario_path`` as its files are now (built once per process, model, wall-time limit [s] and
+    earliest start [s]: a kept process serves later builds too, and an edited scenario, robot or target gets a new
+    planner); the :data:`PLANNERS_KEPT` last used are kept."""
     from lut.table.model_identity import table_hash
     from planner.config.scenario import load_scenario
     from planner.plan import Planner
 
     sc = load_scenario(scenario_path)
-    key = f"{table_hash(sc)}|{max_wall_s}"
+    key = f"{table_hash(sc)}|{max_wall_s}|{earliest_start_s}"
     if key not in _PLANNERS:
         if max_wall_s is not None:
             sc = replace(sc, solver=replace(sc.solver, max_wall_s=min(sc.solver.max_wall_s, max_wall_s)))
+        if earliest_start_s is not None:
+            sc = replace(sc, phases=replace(sc.phases, min_start_delay_s=float(earliest_start_s)))
         _PLANNERS[key] = Planner(sc)
     _PLANNERS[key] = _PLANNERS.pop(key)  # the last used last
     while len(_PLANNERS) > PLANNERS_KEPT:

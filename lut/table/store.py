@@ -238,6 +238,17 @@ class Table:
         """Number of points per status name (all four names, zeros included)."""
         return {name: int(np.count_nonzero(self.status == code)) for name, code in STATUS_CODES.items()}
 
+    def scenario_file(self) -> Path:
+        """The scenario file the table names (stored relative to the table's folder), checked to be there."""
+        stored = self.attrs.get("scenario_path")
+        if not stored:
+            raise TableError(f"{self.path}: the table does not name its scenario; pass --scenario")
+        path = self.path.absolute().parent / stored
+        if not path.is_file():
+            raise TableError(f"{self.path}: its scenario {stored} (relative to the table) is not there; "
+                             "pass --scenario")
+        return path
+
     def check_model(self, expected_hash: str, what: str) -> None:
         """Raise :class:`TableError` unless the table was built for the model hashed as ``expected_hash``."""
         if self.model_hash != expected_hash:

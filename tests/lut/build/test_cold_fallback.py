@@ -24,13 +24,16 @@ class _Planner:
     """Answers a warm plan and a cold plan with the verdicts the test chose; records the warm starts it got."""
 
     def __init__(self, warm_ok: bool, cold_ok: bool) -> None:
-        self.scenario = SimpleNamespace(phases=SimpleNamespace(start_delay_window_s=(0.0, 60.0)))
+        self.scenario = SimpleNamespace(phases=SimpleNamespace(start_delay_window_s=(0.0, 60.0)),
+                                        target=SimpleNamespace(inertia_body_kg_m2=np.diag([800.0, 1100.0, 1500.0])))
+        self.warm_starts: list[PlanParameters | None] = []
         self.verdicts = {"warm": warm_ok, "cold": cold_ok}
         self.calls: list[str] = []
         self.deadlines: list[tuple[Deadline, Deadline | None]] = []
 
     def plan(self, state, warm_start, deadline, grasp_by=None):
         self.calls.append("cold" if warm_start is None else "warm")
+        self.warm_starts.append(warm_start)
         self.deadlines.append((deadline, grasp_by))
         return self.calls[-1]
 
@@ -39,7 +42,7 @@ class _Planner:
 def stand_ins(monkeypatch):
     def install(warm_ok: bool, cold_ok: bool) -> _Planner:
         planner = _Planner(warm_ok, cold_ok)
-        monkeypatch.setattr(worker, "_planner", lambda path, wall: planner)
+        monkeypatch.setattr(worker, "_planner", lambda path, wall, earliest=None: planner)
         monkeypatch.setattr(verifier, "verify", lambda plan: plan)
         monkeypatch.setattr(worker, "result_from_plan", lambda point, plan, report: PointResult(
             point, PointStatus.FEASIBLE if planner.verdicts[plan] else PointStatus.INFEASIBLE, plan, 1.0,
@@ -89,3 +92,13 @@ def test_a_warm_plan_a_cold_one_follows_must_find_its_grasp_in_its_share_of_the_
     planner = stand_ins(False, True)
     _solve(WARM, cold_fallback=False, deadline_at_s=at_s)
     assert planner.deadlines[0][1] is None
+
+
+@pytest.mark.parametrize("omega_deg_s, start_s", [
+    ((0.0, 0.0, 4.0), 5.0),  # a spin about a principal axis: 10 + 85 s is past the window (60 s), a turn (90 s) back
+    ((4.0, 4.0, 4.0), 95.0),  # a tumble never repeats: its 2π/|ω| = 52 s is no period, the start stays
+])
+def test_a_warm_start_moves_by_whole_periods_only_where_the_motion_repeats(stand_ins, omega_deg_s, start_s):
+    planner = stand_ins(True, True)
+    worker.solve_point("s.toml", 3, np.array([1.0, 0, 0, 0]), np.radians(omega_deg_s), WARM, 85.0)
+    assert planner.warm_starts[0].approach.start_delay_s == pytest.approx(start_s)
