@@ -65,11 +65,12 @@ class Deadline:
 
     def earliest_start_s(self, lead_s: float | None = None) -> float:
         """The earliest start delay [s after the observation] an approach solved now may take: the time since the
-        observation and ``lead_s`` [s] for the rest of the plan (default :data:`START_LEAD_S`; ``-inf`` without an
-        observation)."""
+        observation and ``lead_s`` [s] for the rest of the plan (default :data:`START_LEAD_S`), rounded up to a whole
+        :data:`FLOOR_STEP_S` (``-inf`` without an observation)."""
         if self.observed_at_s is None:
             return -math.inf
-        return time.monotonic() - self.observed_at_s + (START_LEAD_S if lead_s is None else lead_s)
+        floor_s = time.monotonic() - self.observed_at_s + (START_LEAD_S if lead_s is None else lead_s)
+        return math.ceil(floor_s / FLOOR_STEP_S) * FLOOR_STEP_S
 
 
 NO_DEADLINE = Deadline()
@@ -78,6 +79,9 @@ VERIFY_RESERVE_S = 5.0
 # a live plan's approach solved now starts at least this long after: the solve itself, the tracking, the braking,
 # verify and the export (README, the planner's constants)
 START_LEAD_S = 5.0
+# a live plan's earliest start is rounded up to a multiple of this [s]: the same state planned again a fraction of a
+# second sooner or later then meets the same bounds, and gets the same plan to the bit (not the next second's)
+FLOOR_STEP_S = 1.0
 # a live plan's last solve (a braking, a costed descent's step) ends at least this long before the approach's start it
 # plans: the plan's assembly and verify come after it (verify took 0.2 s at either default state, machine loaded)
 ANSWER_LEAD_S = 2.0

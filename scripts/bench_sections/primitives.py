@@ -119,8 +119,7 @@ def golden_plan() -> GoldenPlan:
     point = tq.grid.seed_point()
     state = tq.grid.state(point)
     found = tq.interpolate(state)
-    rate = float(np.linalg.norm(state.omega_body_rad_s))
-    given = found.parameters.shifted_in_time(0.0, 2 * np.pi / rate, tq.scenario.phases.start_delay_window_s)
+    given = tq.placed(state, found.parameters)  # in the window, as the query starts it (no observation: no timing)
     plan, simulate_s = timed(lambda: tq.planner.simulate(state, given))
     return GoldenPlan(tq, int(point), found.corners, state, given, plan, simulate_s)
 

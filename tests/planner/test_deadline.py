@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 
-from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
+from planner.deadline import ANSWER_LEAD_S, FLOOR_STEP_S, NO_DEADLINE, START_LEAD_S, Deadline
 
 
 def test_no_deadline_never_passes_and_leaves_all_the_time():
@@ -33,8 +33,18 @@ def test_only_a_live_plans_deadline_dates_the_earliest_start():
     live = Deadline.after(100.0, observed).observed(observed)
     for deadline in (live, live.earlier(5.0), live.earlier(40.0, "a share"), NO_DEADLINE.observed(observed)):
         floor = deadline.earliest_start_s()
-        assert 7.0 + START_LEAD_S <= floor < 7.0 + START_LEAD_S + 1.0  # the test itself takes far less than 1 s
+        # rounded up to a whole second; the test itself takes far less than 1 s
+        assert 7.0 + START_LEAD_S <= floor <= 7.0 + START_LEAD_S + 2 * FLOOR_STEP_S and floor % FLOOR_STEP_S == 0
     assert live.earlier(5.0).at_s == live.at_s - 5.0 and live.earlier(5.0).observed_at_s == observed
+
+
+def test_plans_observed_a_fraction_of_a_second_apart_get_the_same_earliest_start():
+    """The floor is rounded up to a whole step, so the same state planned 0.4 s later meets the same NLP bounds (and
+    IPOPT the same path); only a floor crossing a whole second moves it, by one step."""
+    now = time.monotonic()
+    sooner, later = (Deadline(observed_at_s=now - since).earliest_start_s() for since in (7.2, 7.6))
+    assert sooner == later == 7.0 + START_LEAD_S + FLOOR_STEP_S
+    assert Deadline(observed_at_s=now - 7.2).earliest_start_s(ANSWER_LEAD_S) == 7.0 + ANSWER_LEAD_S + FLOOR_STEP_S
 
 
 def test_a_live_plan_must_stop_solving_the_lead_before_its_approach_starts():
