@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT / "scripts"))  # the benchmark's sections are script
 
 from bench_sections import carry, coverage, coverage_tables  # noqa: E402
 from bench_sections.coverage_runs import CliRun, failure_reasons, run_record  # noqa: E402
-from bench_sections.envelope import flat_spin_state, major_axis_body, tumble_state, wxyz  # noqa: E402
+from bench_sections.envelope import EnvelopeState, flat_spin_state, major_axis_body, tumble_state, wxyz  # noqa: E402
 from bench_sections.failure_kinds import FailureKind, cut_by_the_budget, failure_kind  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
@@ -449,6 +449,37 @@ def test_summary_tallies_reasons_and_bars_judge_them():
     assert b["plan_p95_wall_s_scenario_II_tumble"]["met"] is False  # p95 of 18 × 10 s and 2 × 101 s
     assert b["plans_over_budget"]["value"] == 2 and b["plans_over_budget"]["met"] is False
     assert b["query_feasible_all_kinds"]["met"] is None and b["query_feasible_all_kinds"]["enough_states"] is False
+
+
+def test_the_reach_edge_counts_the_failures_nearer_the_reach_than_every_feasible_plan():
+    def record(ok: bool, slack_m: float) -> dict[str, Any]:
+        return {"feasible_on_time": ok, "wall_s": 1.0, "exit_code": 0 if ok else 2, "reach_slack_m": slack_m,
+                "reasons": [] if ok else [{"reason": "collision", "phase": "approach"}]}
+
+    runs = [record(True, -0.5), record(True, -0.3), record(False, -0.1), record(False, -0.4), record(False, 0.2),
+            record(False, -0.3)]  # as near as the nearest feasible plan: not nearer
+    assert coverage.summary(runs)["reach_edge"] == {"feasible_nearest_m": -0.3, "failures": 4,
+                                                    "failures_nearer_the_edge": 2}
+    assert coverage.reach_edge([record(False, -0.9)])["failures_nearer_the_edge"] == 1  # no feasible plan to compare
+    assert coverage.reach_edge([record(True, -1.0)])["failures"] == 0
+    no_slack = [{k: v for k, v in r.items() if k != "reach_slack_m"} for r in runs]
+    assert coverage.summary(no_slack)["reach_edge"] is None
+
+
+def test_a_coverage_states_slack_is_its_reach_proofs_and_the_outcomes_are_drawn_against_it(tmp_path):
+    """Seed 8's third scenario I flat spin is proven out of reach (the reach section's test): its slack is positive,
+    a state planned feasible elsewhere in the envelope negative; the figure is a PNG with one row per kind."""
+    from bench_sections.reach_figure import draw_outcomes_by_reach
+
+    states = coverage.kind_states(coverage.KINDS[0], 3, 8)
+    slacks = coverage.reach_slacks(states, "scenario_I")
+    assert slacks[2] > 0.5 and all(np.isfinite(slacks))
+    default = coverage.reach_slacks([EnvelopeState(np.array([1.0, 0, 0, 0]), np.array([0, 4.0, 0]))], "scenario_I")
+    assert default[0] < 0  # scenario I's default state, which every plan test plans feasible
+    runs = coverage.with_slacks([{"feasible_on_time": i != 2, "reasons": [] if i != 2 else [
+        {"reason": "out of reach (proven)"}]} for i in range(3)], slacks)
+    figure = draw_outcomes_by_reach({"scenario_I_flat_spin": runs}, tmp_path, "8")
+    assert figure == tmp_path / "coverage_reach.png" and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):

@@ -359,9 +359,9 @@ class TableQuery:
         if self.earliest_start_s is not None:
             earliest = max(earliest, self.earliest_start_s)
         placed = placed_start_s(tau, self.period_s(state), self.scenario.phases.start_delay_window_s, earliest)
-        if placed is None or placed == tau:
-            return None if placed is None else parameters
-        return parameters.with_start_delay(placed)
+        if placed is None:
+            return None
+        return parameters if placed == tau else parameters.with_start_delay(placed)
 
     def simulate_and_verify(self, state: TargetState, parameters: PlanParameters,
                              latency: dict[str, float]) -> tuple[GraspPlan, VerifyReport]:

@@ -28,7 +28,7 @@ from bench_sections.failure_kinds import cut_by_the_budget, failure_kind
 
 SEED_SALT = 20  # the coverage states' seed is (--seed, issue 20, kind)
 SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "failures_by_first_reason",
-                "failures_by_kind", "cut_by_the_budget", "over_budget", "killed", "runs")
+                "failures_by_kind", "cut_by_the_budget", "over_budget", "killed", "reach_edge", "runs")
 PLAN_P95_BAR_S, QUERY_P95_BAR_S, QUERY_FEASIBLE_BAR = 60.0, 30.0, 0.98
 BAR_STATES = 20  # the issue measures its bars on ≥ 20 states per kind
 
@@ -73,7 +73,36 @@ def summary(records: list[dict[str, Any]]) -> dict[str, Any]:
                                              for r in records if r["reasons"]).most_common()),
             "cut_by_the_budget": sum(cut_by_the_budget(r["reasons"]) for r in records),
             "over_budget": sum(any(x["reason"] == OVER_BUDGET for x in r["reasons"]) for r in records),
-            "killed": sum(r["exit_code"] is None for r in records), "runs": records}
+            "killed": sum(r["exit_code"] is None for r in records), "reach_edge": reach_edge(records),
+            "runs": records}
+
+
+def reach_slacks(states: list[EnvelopeState], scenario: str) -> list[float]:
+    """Each state's reach slack [m] (:class:`planner.phases.reach_proof.ReachProof`): how far the grasp's wrist point
+    stays beyond the arm's reach at best over the window; negative, how deep within it it comes (milliseconds a
+    state)."""
+    from planner.model.target_state import TargetState
+    from planner.phases.reach_proof import reach_proof
+
+    sc = load_scenario_named(scenario)
+    return [reach_proof(sc, TargetState(s.attitude_wxyz, np.radians(s.omega_body_deg_s))).slack_m for s in states]
+
+
+def reach_edge(records: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """Where the failures lie against the feasible plans' reach: the largest (nearest the reach's edge) slack [m] of
+    a feasible plan, and how many failures lie nearer the edge still (or beyond it); None without slacks."""
+    if not records or "reach_slack_m" not in records[0]:
+        return None
+    feasible = [r["reach_slack_m"] for r in records if r["feasible_on_time"]]
+    edge = max(feasible) if feasible else None
+    failed = [r["reach_slack_m"] for r in records if not r["feasible_on_time"]]
+    nearer = sum(s > edge for s in failed) if edge is not None else len(failed)
+    return {"feasible_nearest_m": edge, "failures": len(failed), "failures_nearer_the_edge": nearer}
+
+
+def with_slacks(records: list[dict[str, Any]], slacks: list[float]) -> list[dict[str, Any]]:
+    """``records`` (one per state, in order), each with its state's reach slack [m] (``reach_slack_m``)."""
+    return [{**r, "reach_slack_m": s} for r, s in zip(records, slacks, strict=True)]
 
 
 def run_all(jobs: list[list[str]], settings: Settings) -> list[dict[str, Any]]:
@@ -143,16 +172,16 @@ def coverage(settings: Settings) -> dict[str, Any]:
             plans[kind.name] = queries[kind.name] = skipped(reason, SUMMARY_KEYS)
             continue
         states = kind_states(kind, c.states, settings.seed)
-        plans[kind.name] = (summary(run_all([plan_args(c.scenario_of(kind.scenario), s, c.budget_s) for s in states],
-                                            settings)) if c.plans
+        slacks = reach_slacks(states, c.scenario_of(kind.scenario))
+        plan_jobs = [plan_args(c.scenario_of(kind.scenario), s, c.budget_s) for s in states]
+        plans[kind.name] = (summary(with_slacks(run_all(plan_jobs, settings), slacks)) if c.plans
                             else skipped("--coverage-queries-only", SUMMARY_KEYS))
         table = tables.get(kind.name)
         if table is None:
             queries[kind.name] = skipped(f"no table for {kind.name} in {relative(c.tables)}/", SUMMARY_KEYS)
             continue
-        queries[kind.name] = {"table": relative(table),
-                              **summary(run_all([query_args(cli_path(table), s, c.budget_s) for s in states],
-                                                settings))}
+        queries[kind.name] = {"table": relative(table), **summary(with_slacks(
+            run_all([query_args(cli_path(table), s, c.budget_s) for s in states], settings), slacks))}
     return {"states_per_kind": c.states, "seed": [settings.seed, SEED_SALT], "variant": c.variant,
             "budget_s": c.budget_s,
             "kill_after_s": c.budget_s + c.kill_margin_s, "jobs": c.jobs, "plan_budget_option": plan_takes_budget(),
@@ -164,4 +193,15 @@ def coverage(settings: Settings) -> dict[str, Any]:
             "notes": "one process per state (planner build and verification inside its wall time), OMP_NUM_THREADS=1; "
                      "feasible on time = exit 0 within the budget; a run still going at kill_after_s is killed and "
                      "counted over budget; jobs > 1 runs processes side by side and inflates wall times",
-            "plans": plans, "queries": queries, "bars": bars(plans, queries, c.states)}
+            "plans": plans, "queries": queries, "bars": bars(plans, queries, c.states),
+            "figure": _figure(plans, settings)}
+
+
+def _figure(plans: dict[str, Any], settings: Settings) -> str | None:
+    """With ``--reach-plot DIR``: the plans' outcomes against their states' reach slacks, drawn there; its path."""
+    measured = {name: p["runs"] for name, p in plans.items() if p.get("runs")}
+    if settings.reach_plot is None or not measured:
+        return None
+    from bench_sections.reach_figure import draw_outcomes_by_reach
+
+    return str(draw_outcomes_by_reach(measured, settings.reach_plot, str(settings.seed)))

@@ -114,7 +114,17 @@ def _runs(entry: dict[str, Any]) -> str:
     kinds = ", ".join(f"{k} {v}" for k, v in entry["failures_by_kind"].items()) or "none"
     cut = f" ({entry['cut_by_the_budget']} cut short by the budget)" if entry["cut_by_the_budget"] else ""
     return (f"{entry['feasible_on_time']}/{entry['states']} feasible on time; wall p50 {wall['median']:.1f}, "
-            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; failures by kind: {kinds}{cut}")
+            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; failures by kind: {kinds}{cut}"
+            f"{_reach_edge(entry.get('reach_edge'))}")
+
+
+def _reach_edge(edge: dict[str, Any] | None) -> str:
+    """``; reach: feasible plans ≥ 0.24 m inside it, 9/10 failures nearer its edge`` (empty without slacks)."""
+    if not edge or not edge["failures"]:
+        return ""
+    inside = "no feasible plan" if edge["feasible_nearest_m"] is None else \
+        f"feasible plans {-edge['feasible_nearest_m']:.2f} m or more inside it"
+    return f"; reach: {inside}, {edge['failures_nearer_the_edge']}/{edge['failures']} failures nearer its edge"
 
 
 def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:
