@@ -10,7 +10,6 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from itertools import islice
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,7 +60,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
 
     With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that
     fails, it starts from the ``max_starts`` best scanned initial guesses of ``scan`` (made here when not given
-    or not of this state and count), best first, less the first ``skip_guesses`` of them (the planner's next
+    or not of this state and count; for a live plan, of those meeting after its answer can come, a guess too early
+    taking no start), best first, less the first ``skip_guesses`` of them (the planner's next
     grasp when a stabilization failed), and returns the first success (or the last attempt, with its failure
     status; its ``start_guess`` says which guess). ``tracking_speed_scale`` scales the tracking-node rate
     bounds (one factor, or one per tracking segment). ``max_iterations`` (None: only the scenario's per-NLP
@@ -84,12 +84,15 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     n_warm = 0 if warm_start is None else 1
     delay = problem.decision.slice("start_delay_s").start
     too_early = 0  # scanned guesses not started from: they meet before a live plan's answer can come
-    for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses), max_starts + n_warm)):
-        if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
-            break
+    attempts = 0  # the starts taken (a too-early guess is none: the guesses after it stand in for it)
+    for w0, guess, angle in _starts(warm_start, scan, skip_guesses):
         if guess is not None and not meets_in_time(float(w0[delay]), deadline):
             too_early += 1
             continue
+        if attempts == max_starts + n_warm or attempts > 0 and (
+                time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
+            break
+        attempts += 1
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
             break

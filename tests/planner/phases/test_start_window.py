@@ -115,6 +115,33 @@ def test_a_scanned_guess_meeting_well_before_the_answer_is_not_started_from(scen
     assert all(floor <= bound <= floor + 2 * FLOOR_STEP_S and bound % FLOOR_STEP_S == 0 for _, bound in started)
 
 
+def test_too_early_guesses_take_no_start_the_next_in_time_ones_have_them(scenario_I, monkeypatch):
+    """Two starts asked for, the scan's two best guesses too early: the two guesses after them are started from (a
+    skipped guess is not a start; once it was, and a live plan's first approach started from one guess of three)."""
+    problem = Planner(scenario_I).approach
+    delay = problem.decision.slice("start_delay_s").start
+    started: list[float] = []
+
+    def recorded(problem, state, w0, scale, lbw=None, ubw=None, **kwargs):
+        started.append(float(w0[delay]))
+        return SimpleNamespace(success=False, iterations=1, start_guess=None)
+
+    monkeypatch.setattr(approach_solve, "_solve_once", recorded)
+    monkeypatch.setattr(approach_solve, "replace", lambda result, **kwargs: result)
+    observed = time.monotonic() - 20.0
+    floor = 20.0 + START_LEAD_S
+    params = np.zeros(problem.n_params)
+    guesses = [ApproachGuess(params, np.zeros(2), tau, np.zeros(7), np.zeros((3, 7)), 0.1)
+               for tau in (floor - 10.0, floor - 8.0, floor + 2.0, floor + 4.0, floor + 6.0)]
+    scan = SimpleNamespace(serves=lambda state, count: True, result=SimpleNamespace(guesses=guesses))
+    approach_solve.solve_approach(problem, scenario_I.target_state.as_state(), max_starts=2, scan=scan,
+                                  deadline=Deadline.after(100.0, observed).observed(observed))
+    assert started == [floor + 2.0, floor + 4.0]
+    started.clear()
+    approach_solve.solve_approach(problem, scenario_I.target_state.as_state(), max_starts=2, scan=scan)  # offline
+    assert started == [floor - 10.0, floor - 8.0]
+
+
 def test_the_earliest_start_raises_the_bound_and_pins_it_at_a_closed_window(scenario_I):
     """No observation: the bounds as they are; within the window: the lower bound raised; past the window's end (an
     answer that cannot come before the latest start): pinned at the latest, so the plan is judged late, not unsolved."""
