@@ -131,3 +131,22 @@ def test_stored_optima_are_taken_only_for_the_same_scenario_seed_and_states(tmp_
     (tmp_path / "earlier.json").write_text("{}")
     with pytest.raises(SystemExit, match="not a bench JSON"):
         section.stored_optima(tmp_path / "earlier.json", head, states)
+
+
+def test_the_offline_optimum_names_its_scenario_so_that_its_process_finds_it(tmp_path, monkeypatch):
+    """A table built outside the repository names a scenario outside it: the optimum's command gives its absolute path
+    (its process runs in the repository), one inside it the path from there (once the file's bare name: not found)."""
+    from types import SimpleNamespace
+
+    from bench_sections.coverage_runs import CliRun
+
+    from planner.model.target_state import TargetState
+
+    asked: list[list[str]] = []
+    monkeypatch.setattr(section, "run_cli", lambda args, timeout_s: asked.append(args) or CliRun(2, 1.0, "", "", None))
+    state = TargetState(np.array([1.0, 0.0, 0.0, 0.0]), np.radians([0.0, 0.0, 4.0]))
+    outside = tmp_path / "configs" / "scenario_II_energy.toml"
+    inside = ROOT / "configs" / "scenarios" / "scenario_II.toml"
+    for scenario, named in ((outside, str(outside.resolve())), (inside, "configs/scenarios/scenario_II.toml")):
+        record = section.optimum_record(SimpleNamespace(scenario_path=scenario), state, 60.0)
+        assert asked[-1][:2] == ["plan", named] and record["exit_code"] == 2 and record["cost"] is None

@@ -227,6 +227,13 @@ def environment(**variables: str) -> Iterator[None]:
                 os.environ[key] = value
 
 
+def cli_path(path: Path) -> str:
+    """A file as a command line of the bench names it: relative to the repository (where its processes run) if inside
+    it, else absolute (a table built elsewhere, and the scenario it names)."""
+    path = Path(path).resolve()
+    return path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else str(path)
+
+
 def relative(path: Path) -> str:
     """``path`` relative to the repository (JSON carries no machine paths)."""
     path = Path(path).resolve()

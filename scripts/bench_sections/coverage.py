@@ -8,12 +8,11 @@ import sys
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bench_sections.common import ROOT, Settings, load_scenario_named, relative, skipped, stats_p95
+from bench_sections.common import Settings, cli_path, load_scenario_named, relative, skipped, stats_p95
 from bench_sections.coverage_runs import OVER_BUDGET, plan_takes_budget, run_cli, run_record, state_args
 from bench_sections.coverage_tables import find_tables
 from bench_sections.envelope import (
@@ -127,12 +126,6 @@ def plan_args(scenario: str, state: EnvelopeState, budget_s: float) -> list[str]
 
 def query_args(table: str, state: EnvelopeState, budget_s: float) -> list[str]:
     return ["query", table, *state_args(state), "--budget-s", f"{budget_s:g}"]
-
-
-def cli_path(path: Path) -> str:
-    """A table as the command line names it: relative to the repository (where the processes run) if inside it."""
-    path = path.resolve()
-    return path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else str(path)
 
 
 def _bar(value: float | None, bar: float, at_most: bool, enough_states: bool) -> dict[str, Any]:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bench_sections.common import Settings, json_safe, relative, skipped, stats_p95, table_query
+from bench_sections.common import Settings, cli_path, json_safe, relative, skipped, stats_p95, table_query
 from bench_sections.coverage_runs import last_line, reproduction, run_cli, state_args
 from bench_sections.envelope import EnvelopeState
 
@@ -65,7 +65,7 @@ def optimum_record(tq: TableQuery, state: TargetState, budget_s: float) -> dict[
     from lut.output.plan_replay import replay_inputs
 
     envelope = EnvelopeState(np.asarray(state.attitude_wxyz, dtype=float), np.degrees(state.omega_body_rad_s))
-    args = ["plan", relative(tq.scenario_path), *state_args(envelope), "--budget-s", f"{budget_s:g}", "--offline"]
+    args = ["plan", cli_path(tq.scenario_path), *state_args(envelope), "--budget-s", f"{budget_s:g}", "--offline"]
     run = run_cli(args, budget_s + KILL_MARGIN_S)
     cost = None
     if run.document is not None:
