@@ -197,4 +197,4 @@ def _figure(plans: dict[str, Any], settings: Settings) -> str | None:
         return None
     from bench_sections.reach_figure import draw_outcomes_by_reach
 
-    return str(draw_outcomes_by_reach(measured, settings.reach_plot, str(settings.seed)))
+    return relative(draw_outcomes_by_reach(measured, settings.reach_plot, str(settings.seed)))

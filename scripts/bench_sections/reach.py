@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from bench_sections.common import Settings, load_scenario_named
+from bench_sections.common import Settings, load_scenario_named, relative
 from bench_sections.coverage import KINDS, kind_states
 
 WHAT_IFS = {  # name → how the scenario is changed
@@ -73,5 +73,5 @@ def reach(settings: Settings) -> dict[str, Any]:
     if settings.reach_plot is not None:
         from bench_sections.reach_figure import draw_reach_slack
 
-        out["figure"] = str(draw_reach_slack(curves, settings.reach_plot, settings.seed))
+        out["figure"] = relative(draw_reach_slack(curves, settings.reach_plot, settings.seed))
     return out
