@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from itertools import islice
 
 import numpy as np
 from numpy.typing import NDArray
@@ -82,17 +83,10 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     n_warm = 0 if warm_start is None else 1
-    delay = problem.decision.slice("start_delay_s").start
-    too_early = 0  # scanned guesses not started from: they meet before a live plan's answer can come
-    attempts = 0  # the starts taken (a too-early guess is none: the guesses after it stand in for it)
-    for w0, guess, angle in _starts(warm_start, scan, skip_guesses):
-        if guess is not None and not meets_in_time(float(w0[delay]), deadline):
-            too_early += 1
-            continue
-        if attempts == max_starts + n_warm or attempts > 0 and (
-                time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
+    for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses, deadline),
+                                                        max_starts + n_warm)):
+        if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
-        attempts += 1
         left = None if max_iterations is None else max_iterations - iterations
         if left is not None and left <= 0:
             break
@@ -111,27 +105,33 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         if result.success or budget_spent or problem.budget.out_of_time:
             break
     if result is None:
-        return _no_start(problem, _no_guess_status(problem, scan, too_early), problem.scenario.base_offset_guess_m,
-                         time.perf_counter() - t0)
+        return _no_start(problem, _no_guess_status(problem, scan, skip_guesses, deadline),
+                         problem.scenario.base_offset_guess_m, time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
 
 
-def _no_guess_status(problem: ApproachProblem, scan: ScanOnDemand, too_early: int) -> SolveOutcome:
-    """Why no NLP start was made: guesses meeting too early for a live plan (``too_early`` of them skipped, or a
-    scan of the window still in time that reached nothing), else none left."""
+def _no_guess_status(problem: ApproachProblem, scan: ScanOnDemand, skip_guesses: int,
+                     deadline: Deadline) -> SolveOutcome:
+    """Why no NLP start was made: guesses meeting too early for a live plan (after the first ``skip_guesses``), or a
+    scan of the window still in time that reached nothing, else none left."""
     rescanned = scan.scenario.phases.min_start_delay_s > problem.scenario.phases.min_start_delay_s
+    too_early = scan.made and any(not meets_in_time(g.start_delay_s, deadline)
+                                  for g in scan.result.guesses[skip_guesses:])
     return SolveOutcome.NO_GUESS_IN_TIME if too_early or rescanned else SolveOutcome.NO_GUESS_LEFT
 
 
-def _starts(warm_start: ApproachParameters | ApproachSolution | None, scan: ScanOnDemand,
-            skip_guesses: int) -> Iterator[tuple[Array, int | None, float | None]]:
+def _starts(warm_start: ApproachParameters | ApproachSolution | None, scan: ScanOnDemand, skip_guesses: int,
+            deadline: Deadline) -> Iterator[tuple[Array, int | None, float | None]]:
     """The NLP starts in order, each ``(w0, scanned guess index or None for the warm start, its angle about a free
-    grasp axis)``: the warm start, then each scanned guess after the first ``skip_guesses`` once (the scan is made
-    only when a guess is asked for)."""
+    grasp axis)``: the warm start, then each scanned guess after the first ``skip_guesses`` once, but those meeting
+    before a live plan's answer can come (:func:`meets_in_time`: they take no start; the scan is made only when a
+    guess is asked for)."""
     if warm_start is not None:
         yield decision_vector(warm_start), None, None
     for index in range(skip_guesses, len(scan.result.guesses)):
         guess = scan.result.guesses[index]
+        if not meets_in_time(guess.start_delay_s, deadline):
+            continue
         yield decision_vector(guess), index, guess.free_axis_angle_rad
 
 

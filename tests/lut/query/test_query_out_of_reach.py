@@ -10,10 +10,12 @@ budget on a warm refine and the rest on a cold solve that said out of reach (51 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
+from lut.query.result import QuerySource
 from lut.query.table_query import TableQuery
 from lut.table.point_result import PointResult, PointStatus
 from planner.model.target import TargetState
@@ -37,10 +39,24 @@ def _no_refine(*args, **kwargs):
 
 
 def test_out_of_reach_with_a_table_plan_answers_it_infeasible_without_a_solve(tq, monkeypatch):
+    """The table's plan moved 30 s later (carried to STATE it starts 2.4 s after the observation: too soon, below)."""
+    found = tq.interpolate(STATE)
+    later = replace(found, parameters=found.parameters.with_start_delay(found.parameters.approach.start_delay_s + 30))
+    monkeypatch.setattr(tq, "interpolate", lambda state: later)
     monkeypatch.setattr(tq, "refine", _no_refine)
     result = tq.query(STATE, budget_s=100.0)
-    assert not result.report.feasible
+    assert not result.report.feasible and result.source is QuerySource.INTERPOLATED
     assert result.refine_failure.startswith("out of reach (proven): at every start delay within [0, 90] s")
+
+
+def test_out_of_reach_with_table_plans_too_soon_for_the_answer_raises_it(tq, monkeypatch):
+    """Carried to STATE (a 1 °/s spin: one turn is 360 s, past the window) the table's plans start 2.4 s after the
+    observation, before any answer can come (2 s from now, rounded up to a whole second): none is tried, and with no
+    solve for a state out of reach there is no plan at all."""
+    assert all(c.parameters.approach.start_delay_s < 3.0 for c in tq.corner_candidates(STATE))
+    monkeypatch.setattr(tq, "refine", _no_refine)
+    with pytest.raises(OutOfReach, match="out of reach"):
+        tq.query(STATE, budget_s=100.0)
 
 
 def test_out_of_reach_without_a_table_plan_raises_it(tq, monkeypatch):

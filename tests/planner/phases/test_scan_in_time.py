@@ -159,7 +159,7 @@ def test_an_approach_with_no_start_says_whether_its_guesses_came_too_early(scena
     problem = Planner(scenario_I).approach
     guesses = [ApproachGuess(np.zeros(problem.n_params), np.zeros(2), t, np.zeros(7),
                              np.zeros((len(TRACKING_NODES), 7)), 0.1) for t in delays_s]
-    scan = SimpleNamespace(serves=lambda state, count: True, scenario=scenario_I,
+    scan = SimpleNamespace(serves=lambda state, count: True, scenario=scenario_I, made=True,
                            result=SimpleNamespace(guesses=guesses))
     out = approach_solve.solve_approach(problem, scenario_I.target_state.as_state(), max_starts=3, scan=scan,
                                         deadline=_live(SINCE_S))
