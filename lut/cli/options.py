@@ -41,7 +41,6 @@ def with_earliest_start(scenario: Scenario, earliest_s: float | None) -> Scenari
     """``scenario`` whose approach starts no earlier than ``--earliest-start-s`` [s] after the observation (as it is
     without the option), checked: within [0, its latest start]."""
     import math
-    from dataclasses import replace
 
     from planner.errors import LutgenError
 
@@ -51,7 +50,7 @@ def with_earliest_start(scenario: Scenario, earliest_s: float | None) -> Scenari
     if not (math.isfinite(earliest_s) and 0 <= earliest_s <= latest):
         raise LutgenError(f"--earliest-start-s: must be in [0, {latest:g}] s (the scenario's "
                           f"phases.max_start_delay_s), got {earliest_s}")
-    return replace(scenario, phases=replace(scenario.phases, min_start_delay_s=float(earliest_s)))
+    return scenario.starting_from(earliest_s)
 
 
 def cost_weights(base: CostWeights, specs: tuple[str, ...]) -> CostWeights:

@@ -149,7 +149,7 @@ def _planner(scenario_path: str, max_wall_s: float | None, earliest_start_s: flo
         if max_wall_s is not None:
             sc = replace(sc, solver=replace(sc.solver, max_wall_s=min(sc.solver.max_wall_s, max_wall_s)))
         if earliest_start_s is not None:
-            sc = replace(sc, phases=replace(sc.phases, min_start_delay_s=float(earliest_start_s)))
+            sc = sc.starting_from(earliest_start_s)
         _PLANNERS[key] = Planner(sc)
     _PLANNERS[key] = _PLANNERS.pop(key)  # the last used last
     while len(_PLANNERS) > PLANNERS_KEPT:

@@ -10,7 +10,7 @@ Relative paths inside a file are relative to that file's folder.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +63,11 @@ class Scenario:
         """Every file this scenario was read from: itself, its base, the robot URDF, the target file."""
         files = [self.source, *([self.base_source] if self.base_source else [])]
         return [*files, str(self.robot.urdf_path), self.target.source]
+
+    def starting_from(self, earliest_s: float) -> Scenario:
+        """This scenario with the approach's start-delay window beginning at ``earliest_s`` [s after the observation]
+        (its end kept; not checked against it)."""
+        return replace(self, phases=replace(self.phases, min_start_delay_s=float(earliest_s)))
 
 
 @dataclass(frozen=True)

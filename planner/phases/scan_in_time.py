@@ -9,7 +9,6 @@ after the retries) may find every guess of it already too early, and then scans 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 from planner.config.scenario import Scenario
 from planner.deadline import Deadline
@@ -36,7 +35,7 @@ def window_in_time(scenario: Scenario, deadline: Deadline) -> Scenario:
     earliest_s = phases.min_start_delay_s + math.ceil(after_s / DELAY_STEP_S) * DELAY_STEP_S
     if earliest_s > phases.max_start_delay_s:
         return scenario
-    return replace(scenario, phases=replace(phases, min_start_delay_s=earliest_s))
+    return scenario.starting_from(earliest_s)
 
 
 def scan_in_time(scan: ScanOnDemand, deadline: Deadline) -> ScanOnDemand:

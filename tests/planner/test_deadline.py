@@ -47,6 +47,17 @@ def test_plans_observed_a_fraction_of_a_second_apart_get_the_same_earliest_start
     assert Deadline(observed_at_s=now - 7.2).earliest_start_s(ANSWER_LEAD_S) == 7.0 + ANSWER_LEAD_S + FLOOR_STEP_S
 
 
+def test_a_floor_on_a_whole_second_stays_there_and_a_hair_past_it_goes_to_the_next(monkeypatch):
+    """The rounding's edges, on a clock the test sets: 7 s since the observation and the 5 s lead give exactly 12 s
+    (kept, not raised to 13); a nanosecond later, 13 s."""
+    import planner.deadline as deadline_module
+
+    observed = 1000.0
+    for since_s, floor_s in ((7.0, 12.0), (7.0 + 1e-9, 13.0), (6.5, 12.0)):
+        monkeypatch.setattr(deadline_module.time, "monotonic", lambda since_s=since_s: observed + since_s)
+        assert Deadline(observed_at_s=observed).earliest_start_s() == floor_s, since_s
+
+
 def test_a_live_plan_must_stop_solving_the_lead_before_its_approach_starts():
     """``in_time_for``: the earlier of the budget's end and the approach's start less the lead, for a live plan only;
     at exactly the budget's end the budget is kept (its name too)."""
