@@ -30,10 +30,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from lut.query.interpolation import Candidate, cheapest, consistent_group, cost_bands, mean_of_group
-from lut.query.least_violating import violates_less, violation
+from lut.query.carry import Displacement, nearest_displacement
+from lut.query.corner_stage import FINISH_RESERVE_S, MIN_REFINE_S, Attempt, CornerStage
+from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
+from lut.query.least_violating import violates_less
 from lut.query.result import QueryResult, QuerySource, TableAnswer
-from lut.query.stabilization_repair import repaired_plan, single_cause, stabilization_only
+from lut.query.stabilization_repair import repaired_plan
 from lut.query.table_checks import check_parameters, parameter_shapes
 from lut.query.table_start import placed_start_s, table_period_s
 from lut.solve.point_process import DEFAULT_SOLVER, run_point
@@ -56,21 +58,12 @@ from planner.plan_grasps import GRASP_GUESSES
 from planner.plan_parameters import PlanParameters
 from planner.verify.verifier import VerifyReport, verify
 
-FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]
-MIN_REFINE_S = 5.0  # a refine with less time than this cannot finish a solve: not started [s]
 # a warm refine of an infeasible interpolated plan gets the build's WARM_SHARE of the time left when a cold solve
 # follows: a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
 # plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
 # and at most this [s]: a warm refine that fails holds the cold solve back for its whole share, while those that
 # succeed need far less (README "Envelope tables")
 WARM_REFINE_CAP_S = 30.0
-# corners whose own plans are tried (by band of cost, each band heaviest first) when the interpolated plan fails
-# verification, before any solve: each costs one re-simulation and verification and perhaps a repair (1-4 s), a refine
-# tens of seconds; a flat-spin cell has 8 corners (README "Optimal tables")
-CORNER_TRIES = 8
-# a plan the query made: the plan, its verification, the corners it came from and its source
-Attempt = tuple[GraspPlan, VerifyReport, list[int], QuerySource]
-CORNER_STAGE_S = 20.0  # no corner is started once the corners took this long [s]: the solves keep the rest
 
 
 class TableQuery:
@@ -161,27 +154,54 @@ class TableQuery:
         deadline, self.late = Deadline.after(budget_s, since_s).observed(self.observed_at_s), []
         latency: dict[str, float] = {}
         found = self.interpolate(state)
+        far = self.beyond_carry(state, found)
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
-        plan = report = None
-        source = QuerySource.SOLVED_COLD
-        corners = found.corners if found is not None else []
-        made = None if found is None else self.table_plan(state, found, deadline, latency, refine)
-        if made is not None:
-            plan, report, corners, source = made
-        # warm from the table's answer first, then cold (with its retries over grasps) in what the budget has left
+        usable = None if far is not None else found  # the table's answer, where its plans may carry to the state
+        made = None if usable is None else self.table_plan(state, usable, deadline, latency, refine)
+        corners = made[2] if made is not None else [] if usable is None else usable.corners
+        made, refine_failure = self.solved(state, usable, made, corners, deadline, latency, refine, t_start)
+        if made is None:
+            why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
+            near = ("the table has no feasible point near this state" if not self.late else
+                    f"the table's plans near this state would start too soon ({'; '.join(self.late)})")
+            near = far.note() if far is not None else near
+            raise NoPlan(f"no plan: {near} and the solve gave none: {why}")
+        plan, report, corners, source = made
+        costs = self.cost_breakdowns(plan, report, corners)
+        latency["total_s"] = time.perf_counter() - t_start
+        notes = (found.notes if found is not None else ()) + ((far.note(),) if far is not None else ())
+        return QueryResult(plan, report, source, corners, latency, refine_failure, notes, costs, tuple(self.late))
+
+    def beyond_carry(self, state: TargetState, found: TableAnswer | None) -> Displacement | None:
+        """How far ``state`` is from the nearest of ``found``'s points when a tumble table's plans cannot carry that
+        far (:mod:`lut.query.carry`), else None (a flat-spin table's, or near enough to try)."""
+        if found is None or self.grid.kind != "tumble":
+            return None
+        nearest = nearest_displacement(found.corners, state, self.grid.state)
+        return nearest if nearest is not None and nearest.beyond_carry else None
+
+    def solved(self, state: TargetState, found: TableAnswer | None, made: Attempt | None, corners: list[int],
+               deadline: Deadline, latency: dict[str, float], refine: bool,
+               t_start: float) -> tuple[Attempt | None, str]:
+        """The query's solves after the table's plans: warm from ``found`` (when given), then cold (with its retries
+        over grasps), in child processes and what the budget has left, while the plan so far (``made``) is not
+        feasible or a refine was asked for; a solved plan is the attempt of ``corners``. Returns the better plan and
+        why the last solve gave none ("" when none failed); ``t_start`` (``time.perf_counter()``) dates the
+        query."""
         attempts = [(None, QuerySource.SOLVED_COLD)]
         if found is not None:
             attempts.insert(0, (found.parameters, QuerySource.REFINED))
-        refine_failure = ""
-        if (report is None or not report.feasible) and deadline.remaining_s() - FINISH_RESERVE_S >= MIN_REFINE_S:
+        best = made
+        if (best is None or not best[1].feasible) and deadline.remaining_s() - FINISH_RESERVE_S >= MIN_REFINE_S:
             unreachable = self.out_of_reach(state, t_start)  # only where it can spare a solve
-            if unreachable is not None and plan is None:
+            if unreachable is not None and best is None:
                 raise unreachable
             if unreachable is not None:  # no solve can reach the grasp: answer with the table's plan, infeasible
-                attempts, refine_failure = [], str(unreachable)
+                return best, str(unreachable)
+        refine_failure = ""
         for i, (warm, label) in enumerate(attempts):
             remaining = deadline.remaining_s() - FINISH_RESERVE_S
-            if not (report is None or not report.feasible or refine) or remaining < MIN_REFINE_S:
+            if not (best is None or not best[1].feasible or refine) or remaining < MIN_REFINE_S:
                 break
             before_cold = i + 1 < len(attempts) and not refine  # the cold solve keeps the rest
             share_s = min(WARM_SHARE * remaining, WARM_REFINE_CAP_S) if before_cold else remaining
@@ -190,20 +210,12 @@ class TableQuery:
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
                 new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})
-                if report is None or (new_report.feasible and refine) or violates_less(new_report, report):
-                    plan, report, source = new_plan, new_report, label
+                if best is None or (new_report.feasible and refine) or violates_less(new_report, best[1]):
+                    best = (new_plan, new_report, corners, label)
             else:
                 refine_failure = refined.failure_reason
             refine = False  # an asked-for refine is the warm one; the cold solve only stands in for a missing plan
-        if plan is None or report is None:
-            why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
-            near = ("the table has no feasible point near this state" if not self.late else
-                    f"the table's plans near this state would start too soon ({'; '.join(self.late)})")
-            raise NoPlan(f"no plan: {near} and the solve gave none: {why}")
-        costs = self.cost_breakdowns(plan, report, corners)
-        latency["total_s"] = time.perf_counter() - t_start
-        return QueryResult(plan, report, source, corners, latency, refine_failure,
-                           found.notes if found is not None else (), costs, tuple(self.late))
+        return best, refine_failure
 
     def out_of_reach(self, state: TargetState, t_start: float) -> OutOfReach | None:
         """Why no solve can plan ``state`` when no meeting time of the window brings the grasp within the arm's reach
@@ -250,80 +262,10 @@ class TableQuery:
 
     def corner_plan(self, state: TargetState, found: TableAnswer, first: Attempt | None, deadline: Deadline,
                     latency: dict[str, float]) -> Attempt | None:
-        """The interpolated plan (``first``, verified; None when late) repaired, or the first of the cell's feasible
-        corners (at most :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`; those at the cell's lowest cost
-        first, each group heaviest first; the interpolation's own corner when it is one corner's plan is not tried
-        twice; none that would start before the answer) whose own plan, carried to ``state``'s phase, verifies feasible
-        there, as it is (source ``corner``) or with its stabilization repaired (``repaired``): ``(plan, report,
-        corners, source)``; if none does in time, the least violating of those made
-        (:mod:`lut.query.least_violating`); None when none was made.
-
-        A plan whose failure has one cause (:func:`~lut.query.stabilization_repair.single_cause`) is repaired at once;
-        one whose braking is too harsh while its arm also hits a limit or a body only once every corner has been
-        verified as it is, fewest failed checks first: those repairs mostly fail, at the full ``REPAIR_ITERATIONS``
-        (seconds each).
-
-        Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners
-        in different families of solutions may collide or miss the grasp.
-        """
-        later: list[Attempt] = []  # the both-cause plans, repaired last
-        best, stage = first, Deadline.after(CORNER_STAGE_S)
-        fixed = None if first is None else self._repair_now_or_later(first, deadline, latency, later)
-        if fixed is not None:
-            return fixed
-        for candidate in self.corner_order([c for c in self.corner_candidates(state) if [c.corner] != found.corners]):
-            if self._corners_out_of_time(deadline, stage):
-                break
-            made = self.verified(state, candidate.parameters, [candidate.corner], QuerySource.CORNER, {})
-            if made is None:
-                continue
-            if made[1].feasible:
-                return made
-            fixed = self._repair_now_or_later(made, deadline, latency, later)
-            if fixed is not None:
-                return fixed
-            if best is None or violates_less(made[1], best[1]):
-                best = made
-        # fewest failed checks first; the count alone, so that ties keep the order they were tried in
-        for made in sorted(later, key=lambda attempt: violation(attempt[1])[0]):
-            if self._corners_out_of_time(deadline, stage):
-                break
-            fixed = self._timed_repair(made, deadline, latency)
-            if fixed is not None:
-                return fixed
-        return best
-
-    @staticmethod
-    def corner_order(corners: list[Candidate]) -> list[Candidate]:
-        """The corners the corner stage tries, in order: by band of cost (:func:`cost_bands`: those at the cell's
-        lowest cost, then bands a factor :data:`~lut.query.interpolation.COST_BAND_RATIO` apart), each band heaviest
-        first, at most :data:`CORNER_TRIES`."""
-        bands = dict(zip((c.corner for c in corners), cost_bands(corners), strict=True))
-        return sorted(corners, key=lambda c: (bands[c.corner], -c.weight))[:CORNER_TRIES]
-
-    def _repair_now_or_later(self, made: Attempt, deadline: Deadline, latency: dict[str, float],
-                             later: list[Attempt]) -> Attempt | None:
-        """``made`` (a failed plan) repaired now when it fails from one cause
-        (:func:`~lut.query.stabilization_repair.single_cause`): the repaired attempt, or None; appended to ``later``
-        when it fails from both after its grasp; left alone when it fails before its grasp."""
-        if single_cause(made[1]):
-            return self._timed_repair(made, deadline, latency)
-        if stabilization_only(made[1]):
-            later.append(made)
-        return None
-
-    @staticmethod
-    def _corners_out_of_time(deadline: Deadline, stage: Deadline) -> bool:
-        """True when no more corner may be tried: the corner stage is over, or the solves need what is left."""
-        return stage.passed or deadline.remaining_s() < FINISH_RESERVE_S + MIN_REFINE_S
-
-    def _timed_repair(self, made: Attempt, deadline: Deadline, latency: dict[str, float]) -> Attempt | None:
-        """``made`` repaired (:meth:`repaired`) as ``(plan, report, its corners, "repaired")``, or None; the time it
-        took added to ``latency["repair_s"]``."""
-        t0 = time.perf_counter()
-        fixed = self.repaired(made[0], made[1], deadline)
-        latency["repair_s"] += time.perf_counter() - t0
-        return None if fixed is None else (*fixed, made[2], QuerySource.REPAIRED)
+        """The corner stage at ``state`` (:class:`~lut.query.corner_stage.CornerStage`): ``first`` (the interpolated
+        plan, verified; None when late) repaired, or the first of the cell's corners' own plans feasible there; else
+        the least violating of those made; None when none was made."""
+        return CornerStage(self, state, found, deadline, latency).run(first)
 
     def repaired(self, plan: GraspPlan, report: VerifyReport,
                  deadline: Deadline) -> tuple[GraspPlan, VerifyReport] | None:

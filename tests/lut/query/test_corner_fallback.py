@@ -15,6 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from lut.query import corner_stage
 from lut.query import table_query as tq_module
 from lut.query.interpolation import Candidate
 from lut.query.result import QuerySource
@@ -97,7 +98,7 @@ def test_the_heaviest_corner_that_verifies_is_the_answer_without_a_solve(opened,
 
 
 def test_only_corner_tries_are_made_then_the_solves_run(opened, monkeypatch):
-    monkeypatch.setattr(tq_module, "CORNER_TRIES", 2)
+    monkeypatch.setattr(corner_stage, "CORNER_TRIES", 2)
     tried = _stand_in(opened, monkeypatch, {0: 0.1, 1: 0.5, 2: 0.4}, feasible={0})
     res = opened.query(STATE, budget_s=100.0)
     assert tried[:5] == ["interpolated", "repair interpolated", 1, "repair 1", 2]
@@ -106,7 +107,7 @@ def test_only_corner_tries_are_made_then_the_solves_run(opened, monkeypatch):
 
 
 def test_no_corner_is_tried_once_the_corner_stage_has_taken_its_time(opened, monkeypatch):
-    monkeypatch.setattr(tq_module, "CORNER_STAGE_S", 0.0)
+    monkeypatch.setattr(corner_stage, "CORNER_STAGE_S", 0.0)
     tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible={0, 1})
     opened.query(STATE, budget_s=100.0)
     assert tried == ["interpolated", "repair interpolated", "refine", "cold"]
@@ -184,7 +185,7 @@ def test_a_plan_failing_from_both_causes_is_repaired_once_every_corner_was_verif
 def test_a_plan_repaired_last_is_not_repaired_once_the_corner_stage_has_taken_its_time(opened, monkeypatch):
     """The deferred repairs belong to the corner stage: past it, the solves get the time, even for the interpolated
     plan's own repair."""
-    monkeypatch.setattr(tq_module, "CORNER_STAGE_S", 0.0)
+    monkeypatch.setattr(corner_stage, "CORNER_STAGE_S", 0.0)
     tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible=set(), repairable=frozenset({"interpolated"}),
                       failures={"interpolated": "arm"})
     opened.query(STATE, budget_s=100.0)

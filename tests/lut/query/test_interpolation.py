@@ -1,6 +1,6 @@
 """Which corners of a cell take part in a query's average (lut.query.interpolation.cheapest): those at the cell's
 lowest weighted cost, within 1e-4 in the cost's units or 5 % of it, whichever is larger; and the order the corner
-stage tries the rest in (cost_bands, TableQuery.corner_order): bands a factor 1.25 of cost apart, heaviest first in
+stage tries the rest in (cost_bands, corner_stage.corner_order): bands a factor 1.25 of cost apart, heaviest first in
 each."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import math
 
 import pytest
 
+from lut.query.corner_stage import CORNER_TRIES, corner_order
 from lut.query.interpolation import COST_BAND_RATIO, SAME_COST_ABS, SAME_COST_REL, Candidate, cheapest, cost_bands
-from lut.query.table_query import CORNER_TRIES, TableQuery
 
 
 def _corners(*costs: float) -> list[Candidate]:
@@ -77,9 +77,9 @@ def test_the_corner_stage_tries_a_lighter_corner_of_a_cheaper_band_before_a_heav
     corners = [Candidate(58, 0.157, None, 0.674), Candidate(59, 0.118, None, 0.686), Candidate(61, 0.065, None, 0.601),
                Candidate(62, 0.049, None, 0.602), Candidate(67, 0.247, None, 1.75), Candidate(68, 0.185, None, 0.93),
                Candidate(70, 0.102, None, 0.769), Candidate(71, 0.076, None, 0.706)]
-    assert [c.corner for c in TableQuery.corner_order(corners)] == [61, 62, 58, 59, 71, 68, 70, 67]
+    assert [c.corner for c in corner_order(corners)] == [61, 62, 58, 59, 71, 68, 70, 67]
 
 
 def test_the_corner_stage_keeps_its_weight_order_where_costs_are_alike_and_tries_at_most_its_limit():
     corners = [Candidate(i, w, None, 0.0) for i, w in enumerate((0.1, 0.4, 0.2, 0.05, 0.15, 0.01, 0.03, 0.02, 0.04))]
-    assert [c.corner for c in TableQuery.corner_order(corners)] == [1, 2, 4, 0, 3, 8, 6, 7][:CORNER_TRIES]
+    assert [c.corner for c in corner_order(corners)] == [1, 2, 4, 0, 3, 8, 6, 7][:CORNER_TRIES]

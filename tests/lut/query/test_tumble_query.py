@@ -2,16 +2,24 @@
 
 Once a tumble table's query moved every plan by 2π/|ω| (a flat spin's period) into [0, 2π/|ω|): at its own grid
 point (4, 4, 4) °/s, whose plan starts at 77 s (2π/|ω| = 52 s), the stored plan was simulated at 25.5 s, 0.9 m from the
-handle at the grasp, and the answer was INFEASIBLE after a refine."""
+handle at the grasp, and the answer was INFEASIBLE after a refine.
+
+Beyond what a tumble plan carries (lut.query.carry), the query plans at the state at once: the table's plans and a
+warm refine from them would only spend the budget (README "How far a plan carries")."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from lut.query.result import QuerySource
 from lut.query.table_query import TableQuery
+from lut.table.point_result import PointResult, PointStatus
+from planner.model.rotation import quat_multiply
+from planner.model.target import TargetState
+from planner.plan import NoPlan
 from tests.support.cli import lutgen_in_process
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -41,3 +49,49 @@ def test_a_tumble_tables_query_at_its_own_point_answers_with_its_plan_as_stored(
     result = tq.query(state, budget_s=100.0)
     assert result.source is QuerySource.INTERPOLATED and result.report.feasible
     assert result.plan.approach.start_delay_s == stored.approach.start_delay_s
+
+
+def _recorded(tq: TableQuery, monkeypatch) -> list[str]:
+    """The query's stages as they run: each table plan re-simulated, each solve (warm or cold; none gives a plan)."""
+    tried: list[str] = []
+
+    def simulate_and_verify(state, parameters, latency):
+        tried.append("table plan")
+        return original(state, parameters, latency)
+
+    def refine(state, warm, budget_s):
+        tried.append("warm" if warm is not None else "cold")
+        return PointResult(-1, PointStatus.FAILED, "stand-in: no solve")
+
+    original = tq.simulate_and_verify
+    monkeypatch.setattr(tq, "simulate_and_verify", simulate_and_verify)
+    monkeypatch.setattr(tq, "refine", refine)
+    monkeypatch.setattr(tq, "out_of_reach", lambda state, t_start: None)
+    return tried
+
+
+def _displaced(tq: TableQuery, attitude_deg: float, rate_deg_s: float) -> TargetState:
+    """The table's point turned by ``attitude_deg`` about body z, its body rate changed by ``rate_deg_s`` about x."""
+    point = tq.grid.state(0)
+    half = np.radians(attitude_deg) / 2
+    turned = quat_multiply(point.attitude_wxyz, [np.cos(half), 0.0, 0.0, np.sin(half)])
+    return TargetState(turned, point.omega_body_rad_s + np.radians([rate_deg_s, 0.0, 0.0]))
+
+
+@pytest.mark.parametrize(("attitude_deg", "rate_deg_s"), [(30.0, 0.0), (0.0, 1.5), (90.0, 2.0)])
+def test_a_state_beyond_the_carry_of_every_plan_is_planned_at_once_without_the_tables_plans(
+        tumble_table, monkeypatch, attitude_deg, rate_deg_s):
+    """No table plan is re-simulated and no warm refine spends the budget: the cold solve is the first stage, and
+    the answer says why (here the stand-in solve gives nothing: exit 2's NoPlan, naming the point and distances)."""
+    tq = TableQuery(tumble_table)
+    tried = _recorded(tq, monkeypatch)
+    with pytest.raises(NoPlan, match="point 0.*beyond what a tumble plan carries"):
+        tq.query(_displaced(tq, attitude_deg, rate_deg_s), budget_s=100.0)
+    assert tried == ["cold"]
+
+
+def test_a_state_within_carry_tries_the_tables_plan_first(tumble_table, monkeypatch):
+    tq = TableQuery(tumble_table)
+    tried = _recorded(tq, monkeypatch)
+    result = tq.query(_displaced(tq, 2.0, 0.1), budget_s=100.0)
+    assert tried[0] == "table plan" and not any("carries" in note for note in result.notes)

@@ -1,0 +1,72 @@
+"""How far a tumble table's plan carries (lut.query.carry): the displacement of an observed state from a grid point,
+in attitude (the rotation between them, q and −q alike) and body rate, judged against the carry bench's limits at
+their edges."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lut.query.carry import CARRY_ATTITUDE_DEG, CARRY_RATE_DEG_S, displacement, nearest_displacement
+from planner.model.rotation import quat_multiply
+from planner.model.target import TargetState
+
+
+def _quat(axis, angle_rad: float) -> np.ndarray:
+    """[w, x, y, z] of a turn by ``angle_rad`` about ``axis``."""
+    unit = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    return np.concatenate([[math.cos(angle_rad / 2)], math.sin(angle_rad / 2) * unit])
+
+
+BASE_Q = _quat([0.3, -0.5, 0.8], 1.1)
+BASE_W = np.radians([2.0, -3.0, 1.5])
+
+
+def _turned(angle_deg: float, axis=(1.0, 2.0, -2.0), omega_change_deg_s=(0.0, 0.0, 0.0)) -> TargetState:
+    """The base state turned by ``angle_deg`` about a body ``axis``, its body rate changed by ``omega_change``."""
+    turn = _quat(axis, math.radians(angle_deg))
+    return TargetState(quat_multiply(BASE_Q, turn), BASE_W + np.radians(omega_change_deg_s))
+
+
+BASE = TargetState(BASE_Q, BASE_W)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 5.0, 19.0, 45.0, 120.0, 179.0])
+def test_the_attitude_displacement_is_the_rotation_between_them(angle_deg):
+    assert displacement(0, _turned(angle_deg), BASE).attitude_deg == pytest.approx(angle_deg, abs=1e-6)
+
+
+def test_q_and_minus_q_are_the_same_attitude():
+    flipped = TargetState(-BASE_Q, BASE_W)
+    move = displacement(0, flipped, BASE)
+    assert move.attitude_deg == pytest.approx(0.0, abs=1e-5) and move.rate_deg_s == 0.0 and not move.beyond_carry
+
+
+def test_the_rate_displacement_is_the_norm_of_the_body_rate_difference():
+    move = displacement(3, _turned(0.0, omega_change_deg_s=(0.3, -0.4, 0.0)), BASE)
+    assert move.rate_deg_s == pytest.approx(0.5, abs=1e-12) and move.point == 3
+
+
+@pytest.mark.parametrize(("angle_deg", "rate_deg_s", "beyond"), [
+    (CARRY_ATTITUDE_DEG - 1e-6, 0.0, False), (CARRY_ATTITUDE_DEG + 1e-6, 0.0, True),
+    (0.0, CARRY_RATE_DEG_S - 1e-9, False), (0.0, CARRY_RATE_DEG_S + 1e-9, True),
+    (CARRY_ATTITUDE_DEG * 0.9, CARRY_RATE_DEG_S * 0.9, False)])
+def test_beyond_carry_at_its_edges(angle_deg, rate_deg_s, beyond):
+    move = displacement(0, _turned(angle_deg, omega_change_deg_s=(0.0, rate_deg_s, 0.0)), BASE)
+    assert move.beyond_carry is beyond
+
+
+def test_the_nearest_corner_is_the_nearest_in_units_of_the_carry():
+    """Corner 1 is 15° away (0.75 of the attitude's carry), corner 2 0.2° and 0.8 °/s (0.8 of the rate's): 1 is
+    nearer, though its attitude is 75 times farther."""
+    states = {1: _turned(15.0), 2: _turned(0.2, omega_change_deg_s=(0.8, 0.0, 0.0))}
+    nearest = nearest_displacement([2, 1], BASE, states.__getitem__)
+    assert nearest is not None and nearest.point == 1 and not nearest.beyond_carry
+    assert nearest_displacement([], BASE, states.__getitem__) is None
+
+
+def test_the_note_names_the_point_and_both_distances():
+    note = displacement(7, _turned(30.0, omega_change_deg_s=(1.2, 0.0, 0.0)), BASE).note()
+    assert "point 7" in note and "30.0°" in note and "1.20 °/s" in note
