@@ -40,7 +40,7 @@ class Displacement:
         """The answer's note: the query solved at the state, and why."""
         return (f"the table's nearest plan (point {self.point}) is {self.attitude_deg:.1f}° and {self.rate_deg_s:.2f} "
                 f"°/s from this state, beyond what a tumble plan carries ({CARRY_ATTITUDE_DEG:g}°, "
-                f"{CARRY_RATE_DEG_S:g} °/s): planned at the state without the table's plans")
+                f"{CARRY_RATE_DEG_S:g} °/s): its plans not tried")
 
 
 def displacement(point: int, state: TargetState, point_state: TargetState) -> Displacement:
