@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from lut.query.carry import nearest_displacement
 from lut.query.result import QuerySource
 from lut.query.table_query import TableQuery
 from lut.table.point_result import PointResult, PointStatus
@@ -95,3 +96,15 @@ def test_a_state_within_carry_tries_the_tables_plan_first(tumble_table, monkeypa
     tried = _recorded(tq, monkeypatch)
     result = tq.query(_displaced(tq, 2.0, 0.1), budget_s=100.0)
     assert tried[0] == "table plan" and not any("carries" in note for note in result.notes)
+
+
+def test_a_flat_spin_tables_plans_are_always_tried_however_far():
+    """A flat spin's phase is an exact time shift and its corners carry across coarse cells: no carry rule there, even
+    for a state 90° and 2 °/s from every point of the table."""
+    tq = TableQuery(ROOT / "tests" / "data" / "ci_golden.h5")
+    point = tq.grid.state(0)
+    far = TargetState(quat_multiply(point.attitude_wxyz, [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]),
+                      point.omega_body_rad_s + np.radians([2.0, 0.0, 0.0]))
+    found = tq.interpolate(far)
+    assert found is not None and nearest_displacement(found.corners, far, tq.grid.state).beyond_carry
+    assert tq.beyond_carry(far, found) is None
