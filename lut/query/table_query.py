@@ -5,7 +5,8 @@
    the nearest grid coordinates, and the result says so (:mod:`lut.table.grid_projection`).
 2. The feasible corners of the cell, carried to the state (the same spin angle at the meeting), are interpolated —
    only mutually consistent ones at the cell's lowest cost (:mod:`lut.query.interpolation`). Without a feasible
-   corner the nearest feasible point of the table is used.
+   corner the nearest feasible point of the table is used. A tumble table's plans farther from the state than a tumble
+   plan carries (:mod:`lut.query.carry`) are not tried: the query goes to step 5's cold solve at once.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
    actual grasp state) and verified densely.
 4. If the interpolated plan is not feasible only from its grasp on, its stabilization is re-solved warm at the grasp
