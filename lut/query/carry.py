@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.model.rotation import quat_to_matrix, rotation_log
 from planner.model.target_state import TargetState
 
 # the carry bench (10 seeded tumbles a scenario, their plans re-verified at displaced states, repaired as the query
@@ -45,9 +46,10 @@ class Displacement:
 
 def displacement(point: int, state: TargetState, point_state: TargetState) -> Displacement:
     """``state``'s displacement from grid point ``point`` (whose state is ``point_state``); q and −q alike."""
-    cos_half = min(1.0, abs(float(np.dot(state.attitude_wxyz, point_state.attitude_wxyz))))
+    turn = quat_to_matrix(point_state.attitude_wxyz).T @ quat_to_matrix(state.attitude_wxyz)
+    angle = float(np.linalg.norm(rotation_log(turn)))
     rate = float(np.linalg.norm(np.asarray(state.omega_body_rad_s) - np.asarray(point_state.omega_body_rad_s)))
-    return Displacement(point, math.degrees(2.0 * math.acos(cos_half)), math.degrees(rate))
+    return Displacement(point, math.degrees(angle), math.degrees(rate))
 
 
 def nearest_displacement(corners: list[int], state: TargetState,

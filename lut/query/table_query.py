@@ -160,7 +160,8 @@ class TableQuery:
         usable = None if far is not None else found  # the table's answer, where its plans may carry to the state
         made = None if usable is None else self.table_plan(state, usable, deadline, latency, refine)
         corners = made[2] if made is not None else [] if usable is None else usable.corners
-        made, refine_failure = self.solved(state, usable, made, corners, deadline, latency, refine, t_start)
+        warm = None if usable is None else usable.parameters
+        made, refine_failure = self.solved(state, warm, made, corners, deadline, latency, refine, t_start)
         if made is None:
             why = refine_failure or f"there was no time left to solve (budget {budget_s:g} s)"
             near = ("the table has no feasible point near this state" if not self.late else
@@ -181,17 +182,16 @@ class TableQuery:
         nearest = nearest_displacement(found.corners, state, self.grid.state)
         return nearest if nearest is not None and nearest.beyond_carry else None
 
-    def solved(self, state: TargetState, found: TableAnswer | None, made: Attempt | None, corners: list[int],
+    def solved(self, state: TargetState, warm: PlanParameters | None, made: Attempt | None, corners: list[int],
                deadline: Deadline, latency: dict[str, float], refine: bool,
                t_start: float) -> tuple[Attempt | None, str]:
-        """The query's solves after the table's plans: warm from ``found`` (when given), then cold (with its retries
-        over grasps), in child processes and what the budget has left, while the plan so far (``made``) is not
-        feasible or a refine was asked for; a solved plan is the attempt of ``corners``. Returns the better plan and
-        why the last solve gave none ("" when none failed); ``t_start`` (``time.perf_counter()``) dates the
-        query."""
-        attempts = [(None, QuerySource.SOLVED_COLD)]
-        if found is not None:
-            attempts.insert(0, (found.parameters, QuerySource.REFINED))
+        """The query's solves after the table's plans: warm from ``warm`` (the table's answer, when given), then cold
+        (with its retries over grasps), in child processes and what the budget has left, while the plan so far
+        (``made``) is not feasible or a refine was asked for; a solved plan is the attempt of ``corners``. Returns the
+        better plan and why the last solve gave none ("" when none failed); ``t_start`` (``time.perf_counter()``)
+        dates the query."""
+        attempts = [(warm, QuerySource.REFINED)] if warm is not None else []
+        attempts.append((None, QuerySource.SOLVED_COLD))
         best = made
         if (best is None or not best[1].feasible) and deadline.remaining_s() - FINISH_RESERVE_S >= MIN_REFINE_S:
             unreachable = self.out_of_reach(state, t_start)  # only where it can spare a solve
@@ -200,14 +200,14 @@ class TableQuery:
             if unreachable is not None:  # no solve can reach the grasp: answer with the table's plan, infeasible
                 return best, str(unreachable)
         refine_failure = ""
-        for i, (warm, label) in enumerate(attempts):
+        for i, (start, label) in enumerate(attempts):
             remaining = deadline.remaining_s() - FINISH_RESERVE_S
             if not (best is None or not best[1].feasible or refine) or remaining < MIN_REFINE_S:
                 break
             before_cold = i + 1 < len(attempts) and not refine  # the cold solve keeps the rest
             share_s = min(WARM_SHARE * remaining, WARM_REFINE_CAP_S) if before_cold else remaining
             t0 = time.perf_counter()
-            refined = self.refine(state, warm, max(MIN_REFINE_S, share_s))
+            refined = self.refine(state, start, max(MIN_REFINE_S, share_s))
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
                 new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})

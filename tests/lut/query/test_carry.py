@@ -33,15 +33,17 @@ def _turned(angle_deg: float, axis=(1.0, 2.0, -2.0), omega_change_deg_s=(0.0, 0.
 BASE = TargetState(BASE_Q, BASE_W)
 
 
-@pytest.mark.parametrize("angle_deg", [0.0, 5.0, 19.0, 45.0, 120.0, 179.0])
+@pytest.mark.parametrize("angle_deg", [0.0, 1e-6, 5.0, 19.0, 45.0, 120.0, 179.0, 180.0])
 def test_the_attitude_displacement_is_the_rotation_between_them(angle_deg):
-    assert displacement(0, _turned(angle_deg), BASE).attitude_deg == pytest.approx(angle_deg, abs=1e-6)
+    """Degenerate ends included: the same attitude, a micro-degree (where 2·acos|q·p| would round to 0 or to ~1e-6°
+    of noise), and the half turn, where the rotation's axis is ill-defined but its angle is not."""
+    assert displacement(0, _turned(angle_deg), BASE).attitude_deg == pytest.approx(angle_deg, rel=1e-6, abs=1e-9)
 
 
 def test_q_and_minus_q_are_the_same_attitude():
     flipped = TargetState(-BASE_Q, BASE_W)
     move = displacement(0, flipped, BASE)
-    assert move.attitude_deg == pytest.approx(0.0, abs=1e-5) and move.rate_deg_s == 0.0 and not move.beyond_carry
+    assert move.attitude_deg == pytest.approx(0.0, abs=1e-9) and move.rate_deg_s == 0.0 and not move.beyond_carry
 
 
 def test_the_rate_displacement_is_the_norm_of_the_body_rate_difference():
