@@ -1,5 +1,5 @@
-"""A query's corner stage: the interpolated plan repaired, else the cell's corners' own plans tried in turn
-(docs/table.md, Query step 4).
+"""A query's corner stage: the interpolated plan repaired, else the cheapest of the cell's corners' own plans that
+verifies at the state (docs/table.md, Query step 4).
 
 Each corner's plan is an optimum at a nearby state and consistent in itself, where an average of corners in different
 families of solutions may collide or miss the grasp. A plan whose failure has one cause
@@ -14,7 +14,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from lut.query.interpolation import Candidate, cost_bands
+from lut.query.interpolation import SAME_COST_ABS, Candidate, cost_bands
 from lut.query.least_violating import violates_less, violation
 from lut.query.result import QuerySource, TableAnswer
 from lut.query.stabilization_repair import single_cause, stabilization_only
@@ -55,6 +55,13 @@ def corner_order(corners: list[Candidate]) -> list[Candidate]:
     return sorted(corners, key=lambda c: (bands[c.corner], -c.weight))[:CORNER_TRIES]
 
 
+def cheaper(cost: float, than: float) -> bool:
+    """True when a corner of weighted cost ``cost`` is worth trying after a feasible plan of cost ``than`` was found:
+    lower by more than :data:`~lut.query.interpolation.SAME_COST_ABS` (a cost the query would not tell apart from it,
+    Eq. 16 for a 1 cm base offset); never for an unknown (NaN) cost or in a feasibility-only table (costs 0)."""
+    return bool(cost < than - SAME_COST_ABS)
+
+
 @dataclass
 class CornerStage:
     """One query's corner stage at ``state``: the table's answer ``found`` and the query's ``deadline``; the time its
@@ -69,31 +76,32 @@ class CornerStage:
     stage: Deadline = field(default_factory=lambda: Deadline.after(CORNER_STAGE_S))
 
     def run(self, first: Attempt | None) -> Attempt | None:
-        """The interpolated plan (``first``, verified; None when late) repaired, or the first of the cell's feasible
-        corners (at most :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`, in :func:`corner_order`; the
+        """The interpolated plan (``first``, verified; None when late) repaired, or the cheapest feasible plan of the
+        cell's corners (at most :data:`CORNER_TRIES`, for at most :data:`CORNER_STAGE_S`, in :func:`corner_order`; the
         interpolation's own corner when it is one corner's plan is not tried twice; none that would start before the
-        answer) whose own plan, carried to the state's phase, verifies feasible there, as it is (source ``corner``) or
-        with its stabilization repaired (``repaired``); if none does in time, the least violating of those made
-        (:mod:`lut.query.least_violating`); None when none was made."""
-        best = first
+        answer), each carried to the state's phase and verified there, as it is (source ``corner``) or with its
+        stabilization repaired (``repaired``): once one is feasible only the corners cheaper than it
+        (:func:`cheaper`) are tried, each as it is or repaired from one cause. If none is feasible in time, the least
+        violating of those made (:mod:`lut.query.least_violating`); None when none was made."""
         fixed = None if first is None else self._repair_now_or_later(first)
         if fixed is not None:
             return fixed
+        best, found, found_cost = first, None, float("nan")
         candidates = [c for c in self.query.corner_candidates(self.state) if [c.corner] != self.found.corners]
         for candidate in corner_order(candidates):
             if self.out_of_time():
                 break
+            if found is not None and not cheaper(candidate.cost, found_cost):
+                continue
             made = self.query.verified(self.state, candidate.parameters, [candidate.corner], QuerySource.CORNER, {})
             if made is None:
                 continue
-            if made[1].feasible:
-                return made
-            fixed = self._repair_now_or_later(made)
+            fixed = made if made[1].feasible else self._repair_now_or_later(made, defer=found is None)
             if fixed is not None:
-                return fixed
-            if best is None or violates_less(made[1], best[1]):
+                found, found_cost = fixed, candidate.cost
+            elif found is None and (best is None or violates_less(made[1], best[1])):
                 best = made
-        return self._repair_the_rest() or best
+        return found or self._repair_the_rest() or best
 
     def _repair_the_rest(self) -> Attempt | None:
         """The both-cause plans repaired, fewest failed checks first (the count alone, so that ties keep the order
@@ -106,12 +114,13 @@ class CornerStage:
                 return fixed
         return None
 
-    def _repair_now_or_later(self, made: Attempt) -> Attempt | None:
+    def _repair_now_or_later(self, made: Attempt, defer: bool = True) -> Attempt | None:
         """``made`` (a failed plan) repaired now when it fails from one cause: the repaired attempt, or None; kept for
-        :meth:`_repair_the_rest` when it fails from both after its grasp; left alone when it fails before its grasp."""
+        :meth:`_repair_the_rest` when it fails from both after its grasp and ``defer``; else left alone (it fails
+        before its grasp)."""
         if single_cause(made[1]):
             return self.timed_repair(made)
-        if stabilization_only(made[1]):
+        if defer and stabilization_only(made[1]):
             self.later.append(made)
         return None
 

@@ -208,3 +208,38 @@ def test_the_interpolations_own_corner_is_not_tried_again(opened, monkeypatch):
                       failures={"interpolated": "approach"})
     res = opened.query(STATE, budget_s=100.0)
     assert res.corners_used == [1] and tried == ["interpolated", 1]
+
+
+def test_once_a_corner_verifies_only_cheaper_corners_are_tried_and_the_cheapest_feasible_is_the_answer(opened,
+                                                                                                        monkeypatch):
+    """Issue 21: within a band of cost the corners go nearest first, so the first to verify can be the band's costliest
+    (scenario II, seed 9 state 7: corner 82 at 1.139 m² answered where a lighter corner at 0.978 m² was never tried;
+    the fresh optimum 1.083 m²). After a feasible corner the rest of the order is tried only where cheaper."""
+    costs = {0: 1.0, 5: 1.02, 1: 1.2, 2: 1.15, 3: 1.1, 4: 1.5}  # band 0: 0, 5; band 1: 1, 2, 3; band 2: 4
+    weights = {0: 0.3, 5: 0.25, 1: 0.2, 2: 0.12, 3: 0.08, 4: 0.05}
+    tried = _stand_in(opened, monkeypatch, weights, feasible={1, 2, 3, 4}, costs=costs,
+                      failures={"interpolated": "approach", 0: "approach", 5: "approach"})
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", 0, 5, 1, 2, 3]  # 4 (1.5 m²) is not cheaper than 1's 1.2 m²: never tried
+    assert res.corners_used == [3] and res.source is QuerySource.CORNER and res.report.feasible
+
+
+def test_a_cheaper_corner_that_fails_leaves_the_feasible_answer_and_is_not_repaired_from_both_causes(opened,
+                                                                                                    monkeypatch):
+    """A cheaper corner failing from one cause is repaired at once, as before a corner was found; one failing from
+    both (repairs that mostly fail, seconds each) is not kept for later once a feasible plan is in hand."""
+    costs = {0: 1.0, 5: 1.02, 1: 1.2, 2: 1.15, 3: 1.12, 4: 1.1}
+    weights = {0: 0.3, 5: 0.25, 1: 0.2, 2: 0.12, 3: 0.08, 4: 0.05}
+    tried = _stand_in(opened, monkeypatch, weights, feasible={1}, costs=costs, repairable=frozenset({2, 3, 4}),
+                      failures={"interpolated": "approach", 0: "approach", 5: "approach", 2: "arm", 4: "approach"})
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", 0, 5, 1, 2, 3, "repair 3", 4]  # 2 fails from both causes: never repaired
+    assert res.corners_used == [3] and res.source is QuerySource.REPAIRED
+
+
+def test_a_feasibility_only_table_answers_with_its_first_feasible_corner(opened, monkeypatch):
+    """Costs all 0 (no cost weighted): no corner is cheaper than another, so the stage ends at the first feasible."""
+    tried = _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.3, 2: 0.2}, feasible={0, 1, 2},
+                      failures={"interpolated": "approach"})
+    res = opened.query(STATE, budget_s=100.0)
+    assert tried == ["interpolated", 0] and res.corners_used == [0]
