@@ -155,7 +155,7 @@ class TableQuery:
         deadline, self.late = Deadline.after(budget_s, since_s).observed(self.observed_at_s), []
         latency: dict[str, float] = {}
         found = self.interpolate(state)
-        far = self.beyond_carry(state, found)
+        far = None if found is None else self.beyond_carry(state, found.corners)
         latency["lookup_interpolate_s"] = time.perf_counter() - t_start
         usable = None if far is not None else found  # the table's answer, where its plans may carry to the state
         made = None if usable is None else self.table_plan(state, usable, deadline, latency, refine)
@@ -174,12 +174,12 @@ class TableQuery:
         notes = (found.notes if found is not None else ()) + ((far.note(),) if far is not None else ())
         return QueryResult(plan, report, source, corners, latency, refine_failure, notes, costs, tuple(self.late))
 
-    def beyond_carry(self, state: TargetState, found: TableAnswer | None) -> Displacement | None:
-        """How far ``state`` is from the nearest of ``found``'s points when a tumble table's plans cannot carry that
-        far (:mod:`lut.query.carry`), else None (a flat-spin table's, or near enough to try)."""
-        if found is None or self.grid.kind != "tumble":
+    def beyond_carry(self, state: TargetState, corners: list[int]) -> Displacement | None:
+        """How far ``state`` is from the nearest of the grid points ``corners`` when a tumble table's plans cannot
+        carry that far (:mod:`lut.query.carry`), else None (a flat-spin table's, no corners, or near enough to try)."""
+        if self.grid.kind != "tumble":
             return None
-        nearest = nearest_displacement(found.corners, state, self.grid.state)
+        nearest = nearest_displacement(corners, state, self.grid.state)
         return nearest if nearest is not None and nearest.beyond_carry else None
 
     def solved(self, state: TargetState, warm: PlanParameters | None, made: Attempt | None, corners: list[int],

@@ -5,18 +5,22 @@ point (4, 4, 4) °/s, whose plan starts at 77 s (2π/|ω| = 52 s), the stored pl
 handle at the grasp, and the answer was INFEASIBLE after a refine.
 
 Beyond what a tumble plan carries (lut.query.carry), the query plans at the state at once: the table's plans and a
-warm refine from them would only spend the budget (README "How far a plan carries")."""
+warm refine from them would only spend the budget (README "How far a plan carries"); ``--robust`` judges only the
+corners a tumble plan carries to."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from lut.query.carry import nearest_displacement
 from lut.query.result import QuerySource
+from lut.query.robust_choice import RobustRequest, robust_query
 from lut.query.table_query import TableQuery
+from lut.robustness.error_model import ErrorModel
 from lut.table.point_result import PointResult, PointStatus
 from planner.model.rotation import quat_multiply
 from planner.model.target import TargetState
@@ -107,4 +111,20 @@ def test_a_flat_spin_tables_plans_are_always_tried_however_far():
                       point.omega_body_rad_s + np.radians([2.0, 0.0, 0.0]))
     found = tq.interpolate(far)
     assert found is not None and nearest_displacement(found.corners, far, tq.grid.state).beyond_carry
-    assert tq.beyond_carry(far, found) is None
+    assert tq.beyond_carry(far, found.corners) is None
+
+
+@pytest.mark.parametrize(("attitude_deg", "rate_deg_s", "corner_tried"), [(30.0, 0.0, False), (2.0, 0.1, True)])
+def test_a_robust_query_judges_only_the_corners_a_tumble_plan_carries_to(tumble_table, monkeypatch, attitude_deg,
+                                                                          rate_deg_s, corner_tried):
+    """``--robust`` re-simulates each corner of the cell as a candidate: in a tumble table, only one within what a
+    tumble plan carries (a corner 30° away would cost its simulation and verification and never verify)."""
+    tq = TableQuery(tumble_table)
+    tried = _recorded(tq, monkeypatch)
+    infeasible = SimpleNamespace(feasible=False, violations=["stand-in"])
+    plain = SimpleNamespace(source=QuerySource.SOLVED_COLD, plan=None, report=infeasible, corners_used=[])
+    monkeypatch.setattr(tq, "query", lambda state, budget_s: plain)
+    request = RobustRequest(ErrorModel.from_sigmas(np.radians(0.5), np.radians(0.05)), samples=1, seed=0, jobs=1)
+    choice = robust_query(tq, _displaced(tq, attitude_deg, rate_deg_s), request, budget_s=100.0, refine=False)
+    assert tried == (["table plan"] if corner_tried else [])
+    assert [c.label for c in choice.candidates][1:] == (["corner 0"] if corner_tried else [])
