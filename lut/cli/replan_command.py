@@ -54,7 +54,11 @@ def replan(plan_path: str, attitude: str, omega_deg_s: str, since_s: float, budg
     check_plan_outputs([plan_path, scenario.source, scenario.robot.urdf_path, scenario.target.source], out_path,
                        csv_path)
     result = run_replan(scenario, inputs.parameters, state, since_s, budget_s, started_s)
-    for line in plan_table(result.plan, result.report) + summary_lines(result.report):
+    for line in plan_table(result.plan, result.report):
+        click.echo(line)
+    for note in result.solve_notes:
+        click.echo(f"note: the solve: {note}")
+    for line in summary_lines(result.report):
         click.echo(line)
     x, z = result.plan.approach.base_offset_m
     click.echo(f"re-planned from {plan_path} ({result.source}): base offset kept at ({x:+.4f}, {z:+.4f}) m; the "

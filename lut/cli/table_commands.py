@@ -234,6 +234,8 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
                    f"{'; '.join(result.late)}")
     for line in plan_table(result.plan, result.report):
         click.echo(line)
+    for note in result.solve_notes:  # e.g. the approach re-solved, the braking cut short, the budget ran out
+        click.echo(f"note: the solve: {note}")
     for line in summary_lines(result.report):
         click.echo(line)
     lat = result.latency_s

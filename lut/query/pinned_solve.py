@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lut.solve.point_worker import plan_deadline, verified_plan
-from lut.table.records import Record, failed_result, to_record
+from lut.table.records import Record, failed_result, to_record, with_notes
 from planner.plan_parameters import PlanParameters
 
 PINNED_SOLVER = "lut.query.pinned_solve:solve_pinned"
@@ -43,4 +43,5 @@ def solve_pinned(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float
     state = TargetState(np.asarray(attitude_wxyz, dtype=float), np.asarray(omega_body_rad_s, dtype=float))
     warm_start = warm.with_start_delay(warm.approach.start_delay_s + warm_shift_s)
     result = verified_plan(Planner(pinned), point, state, warm_start, plan_deadline(deadline_at_s, observed_at_s))
-    return to_record(replace(result, solve_time_s=time.perf_counter() - t0))
+    result = replace(result, solve_time_s=time.perf_counter() - t0)
+    return with_notes(to_record(result), result)

@@ -46,6 +46,7 @@ class Replan:
     solve_s: float
     source: str  # "previous plan" (shifted, unchanged) or "re-solved" (base offset pinned)
     solve_failure: str = ""  # why a solve that was needed gave no feasible plan
+    solve_notes: tuple[str, ...] = ()  # what the re-solve noted (its grasps, re-solves, budget), when it answered
 
 
 def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, since_s: float,
@@ -85,8 +86,10 @@ def replan(scenario: Scenario, previous: PlanParameters, state: TargetState, sin
     if gap > BASE_PIN_TOL_M:  # the pinned bounds hold it: anything else is a broken solve, not a plan to fly
         raise LutgenError(f"the re-plan moved the base offset by {gap:.3g} m although it was pinned")
     plan = planner.simulate(state, new)
+    plan.notes.extend(solved.notes)  # how the re-solve went (its grasps, re-solves, budget): printed and kept
     report = verify(plan)
     if not report.feasible:
         return Replan(shifted, shifted_report, 0.0, time.perf_counter() - t0, "previous plan",
                       "the re-solved plan is infeasible too: " + "; ".join(report.violations)[:200])
-    return Replan(plan, report, since_s + new.approach.start_delay_s - tau, time.perf_counter() - t0, "re-solved")
+    return Replan(plan, report, since_s + new.approach.start_delay_s - tau, time.perf_counter() - t0, "re-solved",
+                  solve_notes=solved.notes)

@@ -53,3 +53,4 @@ class QueryResult:
     notes: tuple[str, ...] = ()  # how the state differs from where the table answered (off its family or grid)
     costs: tuple[CostBreakdown, ...] = ()  # the plan's weighted cost terms, then each used corner's (none: all 0)
     late: tuple[str, ...] = ()  # the table plans not tried: they would have started before the answer (which, when)
+    solve_notes: tuple[str, ...] = ()  # a solved plan's (source refined or solved cold): what its solve noted

@@ -35,6 +35,7 @@ from lut.table.records import (
     parameters_from_fields,
     result_from_plan,
     to_record,
+    with_notes,
 )
 from planner.deadline import NO_DEADLINE, VERIFY_RESERVE_S, Deadline
 from planner.model.spin_period import repeat_period_s
@@ -98,7 +99,7 @@ def solve_point(scenario_path: str, point: int, attitude_wxyz: NDArray[np.float6
         result = replace(result, robustness=point_robustness(
             planner, scenario_path, state, result.parameters, robust_attitude_sigma_deg, robust_rate_sigma_deg_s,
             robust_samples, seed=max(point, 0)))
-    return to_record(result)
+    return with_notes(to_record(result), result)
 
 
 def plan_deadline(deadline_at_s: float | None, observed_at_s: float | None = None) -> Deadline:

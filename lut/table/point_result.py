@@ -47,3 +47,6 @@ class PointResult:
     costs: dict[str, float] = field(default_factory=dict)
     margins: dict[str, float] = field(default_factory=dict)
     robustness: dict[str, float] = field(default_factory=dict)
+    # the plan's notes (its grasps, re-solves, budget): a solve's child process hands them to the query that asked
+    # for it (:func:`lut.table.records.with_notes`); a journal or table does not store them
+    notes: tuple[str, ...] = ()

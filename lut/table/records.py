@@ -24,6 +24,7 @@ Record = dict[str, Any]
 # the plan parameters' keys, in record order (all numeric arrays or numbers a query interpolates)
 PARAMETER_KEYS = ("approach_params", "base_offset_m", "start_delay_s", "q_tracking", "stabilization_params")
 MAX_REASON_CHARS = 2000  # a failure reason is cut here: a record stays small
+NOTES_KEY = "notes"  # a solve's notes, one per line, in the record a child process returns (never journaled)
 
 
 def plan_costs(plan: GraspPlan, report: VerifyReport) -> dict[str, float]:
@@ -49,7 +50,8 @@ def result_from_plan(point: int, plan: GraspPlan, report: VerifyReport) -> Point
                        parameters=PlanParameters(approach, np.asarray(plan.stabilization.params, dtype=float)),
                        free_axis_angle_rad=float(plan.tracking.free_axis_angle_rad),
                        costs=plan_costs(plan, report),
-                       margins={name: float(check.margin) for name, check in report.checks.items()})
+                       margins={name: float(check.margin) for name, check in report.checks.items()},
+                       notes=tuple(plan.notes))
 
 
 def failed_result(point: int, reason: str, solve_time_s: float = float("nan")) -> PointResult:
@@ -90,7 +92,16 @@ def from_record(rec: Record) -> PointResult:
                        iterations=int(rec.get("iterations", 0)), parameters=parameters_from_fields(rec),
                        free_axis_angle_rad=None if free is None else float(free),
                        costs=_prefixed(rec, "costs/"), margins=_prefixed(rec, "margins/"),
-                       robustness=_prefixed(rec, "robustness/"))
+                       robustness=_prefixed(rec, "robustness/"),
+                       notes=tuple(line for line in str(rec.get(NOTES_KEY, "")).split("\n") if line))
+
+
+def with_notes(rec: Record, result: PointResult) -> Record:
+    """``rec`` (:func:`to_record` of ``result``) with the plan's notes, as a solve's child process returns it to the
+    query or re-plan that asked (:func:`from_record` reads them back); the journal and table keep :func:`to_record`'s
+    schema, without them."""
+    notes = [note.replace("\n", " ") for note in result.notes]
+    return {**rec, NOTES_KEY: "\n".join(notes)} if notes else rec
 
 
 def _prefixed(rec: Record, prefix: str) -> dict[str, float]:
