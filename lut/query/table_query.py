@@ -89,6 +89,7 @@ class TableQuery:
         self._corner_costs: dict[int, CostBreakdown] = {}  # point → its stored plan's cost terms (corner_costs)
         self.observed_at_s: float | None = None  # the query in progress's observation (time.monotonic())
         self.late: list[str] = []  # the query in progress's table plans not tried: they would start before its answer
+        self.solve_notes: tuple[str, ...] = ()  # what the solve that made the query in progress's plan noted
         self.earliest_start_s: float | None = None  # [s after the observation] --earliest-start-s; None: the scenario's
         self.load_time_s = time.perf_counter() - t0
 
@@ -153,6 +154,7 @@ class TableQuery:
         t_start = time.perf_counter()
         self.observed_at_s = time.monotonic() if since_s is None else since_s  # the observation: the refine's too
         deadline, self.late = Deadline.after(budget_s, since_s).observed(self.observed_at_s), []
+        self.solve_notes = ()
         latency: dict[str, float] = {}
         found = self.interpolate(state)
         far = None if found is None else self.beyond_carry(state, found.corners)
@@ -172,7 +174,9 @@ class TableQuery:
         costs = self.cost_breakdowns(plan, report, corners)
         latency["total_s"] = time.perf_counter() - t_start
         notes = (found.notes if found is not None else ()) + ((far.note(),) if far is not None else ())
-        return QueryResult(plan, report, source, corners, latency, refine_failure, notes, costs, tuple(self.late))
+        solve_notes = self.solve_notes if source in (QuerySource.REFINED, QuerySource.SOLVED_COLD) else ()
+        return QueryResult(plan, report, source, corners, latency, refine_failure, notes, costs, tuple(self.late),
+                           solve_notes)
 
     def beyond_carry(self, state: TargetState, corners: list[int]) -> Displacement | None:
         """How far ``state`` is from the nearest of the grid points ``corners`` when a tumble table's plans cannot
@@ -212,7 +216,8 @@ class TableQuery:
             if refined.status in (PointStatus.FEASIBLE, PointStatus.INFEASIBLE) and refined.parameters is not None:
                 new_plan, new_report = self.simulate_and_verify(state, refined.parameters, {})
                 if best is None or (new_report.feasible and refine) or violates_less(new_report, best[1]):
-                    best = (new_plan, new_report, corners, label)
+                    best, self.solve_notes = (new_plan, new_report, corners, label), refined.notes
+                    new_plan.notes.extend(refined.notes)  # the plan file keeps how its parameters were solved
             else:
                 refine_failure = refined.failure_reason
             refine = False  # an asked-for refine is the warm one; the cold solve only stands in for a missing plan
@@ -321,12 +326,15 @@ class TableQuery:
         """A solve warm-started from ``warm`` (cold without) in a child process with a hard time limit [s].
 
         The child's plan has a deadline inside that limit (:mod:`planner.deadline`): its solves end there with
-        the best they have, verified, before the process would be killed. Each NLP's own wall-time limit is half
+        the best they have, verified, before the process would be killed. A warm solve's NLPs each get at most half
         the budget, so the approach cannot take the stabilization's time (a warm approach converges in a few
-        iterations; a warm stabilization at a grasp between the table's may need many).
+        iterations; a warm stabilization at a grasp between the table's may need many). A cold solve's keep the
+        scenario's limit, as ``lutgen plan``'s do: the same state gets the same plan from both (halved, an approach
+        re-solved for its tracking's rates, 40 s of a 94 s budget, was cut at 47 s and its grasp lost).
         """
+        max_wall_s = None if warm is None else max(1.0, budget_s / 2)
         return run_point(DEFAULT_SOLVER, str(self.scenario_path), -1, state, warm, 0.0, timeout_s=budget_s,
-                         max_wall_s=max(1.0, budget_s / 2), plan_budget_s=budget_s,
+                         max_wall_s=max_wall_s, plan_budget_s=budget_s,
                          timeout_name="the refine's share of --budget-s",
                          solver_kwargs=self._solver_kwargs())
 
