@@ -54,13 +54,13 @@ class Deadline:
         """This deadline, of a live plan whose observation was made at ``observed_at_s`` [s, ``time.monotonic()``]."""
         return Deadline(self.at_s, self.what, observed_at_s)
 
-    def in_time_for(self, start_delay_s: float) -> Deadline:
-        """This deadline, or for a live plan the instant :data:`ANSWER_LEAD_S` before an approach starting at
-        ``start_delay_s`` [s after the observation] if that comes first: solving on past it, the plan would answer
-        after its own start (a table point's or an offline plan's deadline is unchanged)."""
+    def in_time_for(self, start_delay_s: float, lead_s: float | None = None) -> Deadline:
+        """This deadline, or for a live plan the instant ``lead_s`` [s] (default :data:`ANSWER_LEAD_S`) before an
+        approach starting at ``start_delay_s`` [s after the observation] if that comes first: solving on past it, the
+        plan would answer after its own start (a table point's or an offline plan's deadline is unchanged)."""
         if self.observed_at_s is None:
             return self
-        start_by_s = self.observed_at_s + start_delay_s - ANSWER_LEAD_S
+        start_by_s = self.observed_at_s + start_delay_s - (ANSWER_LEAD_S if lead_s is None else lead_s)
         return self if start_by_s >= self.at_s else Deadline(start_by_s, self.what, self.observed_at_s)
 
     def earliest_start_s(self, lead_s: float | None = None) -> float:
