@@ -21,3 +21,19 @@ def test_a_refine_past_its_deadline_returns_a_verified_plan_not_a_timeout():
     assert result.status is PointStatus.INFEASIBLE, result.failure_reason
     assert result.parameters is not None and np.all(np.isfinite(result.parameters.approach.params))
     assert result.iterations <= 2  # the approach stopped at its first callback; no stabilization NLP solved
+
+
+def test_a_querys_cold_solve_keeps_the_scenarios_nlp_wall_limit_and_a_warm_refine_gets_half(monkeypatch):
+    """The cold solve is `lutgen plan`'s at the state, so it plans with the same settings: halved, an approach
+    re-solved for its tracking's rates (40 s in all) was cut at 47 s of a 94 s budget and its grasp lost. A warm
+    refine's NLPs each get at most half, so its approach cannot take its braking's time."""
+    from lut.query import table_query
+    from lut.query.table_query import TableQuery
+
+    given: list[float | None] = []
+    monkeypatch.setattr(table_query, "run_point", lambda *args, **kw: given.append(kw["max_wall_s"]))
+    tq = TableQuery(ROOT / "tests" / "data" / "ci_golden.h5")
+    state = tq.grid.state(0)
+    tq.refine(state, None, 94.0)
+    tq.refine(state, tq.points[0].parameters, 94.0)
+    assert given == [None, 47.0]
