@@ -329,7 +329,7 @@ class TableQuery:
         the best they have, verified, before the process would be killed. A warm solve's NLPs each get at most half
         the budget, so the approach cannot take the stabilization's time (a warm approach converges in a few
         iterations; a warm stabilization at a grasp between the table's may need many). A cold solve's keep the
-        scenario's limit, as ``lutgen plan``'s do: the same state gets the same plan from both (halved, an approach
+        scenario's limit, as ``lutgen plan``'s do: it is that command's plan at the state (halved, an approach
         re-solved for its tracking's rates, 40 s of a 94 s budget, was cut at 47 s and its grasp lost).
         """
         max_wall_s = None if warm is None else max(1.0, budget_s / 2)
