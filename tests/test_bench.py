@@ -311,6 +311,10 @@ def test_failure_reasons_name_the_failing_checks_of_a_stored_infeasible_plan():
     assert "stabilization Out_Of_Time" in ran_out[0]["detail"] and "time budget ran out" in ran_out[0]["detail"]
     record = run_record(["plan", "s.toml"], CliRun(2, 80.0, "note: made from another grasp\n", "", metrics), 100.0)
     assert record["notes"][0] == "made from another grasp" and metrics["notes"][0] in record["notes"]
+    # a query prints its solve's notes, which its plan file keeps too: each once in the record
+    solved = {**metrics, "notes": ["simulated from given parameters", "approach re-solved"]}
+    queried = run_record(["query", "t.h5"], CliRun(0, 9.0, "note: the solve: approach re-solved\n", "", solved), 100.0)
+    assert queried["notes"] == ["approach re-solved", "simulated from given parameters"]
     assert record["command"] == "OMP_NUM_THREADS=1 lutgen plan s.toml --out plan.json"
 
 

@@ -157,8 +157,10 @@ def run_record(args: list[str], run: CliRun, budget_s: float) -> dict[str, Any]:
     """Everything needed to judge and reproduce one run; the plan's verification and solver record in brief."""
     reasons = failure_reasons(run, budget_s)
     m = run.metrics or {}
-    printed = [line[len("note: "):] for line in run.stdout.splitlines() if line.startswith("note: ")]
-    notes = list(dict.fromkeys([*printed, *m.get("notes", [])]))  # a query prints its own notes, a plan its plan's
+    # a query prints its own notes and its solve's (which its plan file keeps too), a plan its plan's: each once
+    printed = [line[len("note: "):].removeprefix("the solve: ") for line in run.stdout.splitlines()
+               if line.startswith("note: ")]
+    notes = list(dict.fromkeys([*printed, *m.get("notes", [])]))
     source = [line.split()[1] for line in run.stdout.splitlines() if line.startswith("source ")]
     latency = [query_latency_s(line) for line in run.stdout.splitlines() if line.startswith("source ")]
     refine = [line.split(": ", 1)[1] for line in run.stderr.splitlines() if line.startswith("refine did not finish: ")]
