@@ -89,7 +89,8 @@ class TableQuery:
         self._corner_costs: dict[int, CostBreakdown] = {}  # point → its stored plan's cost terms (corner_costs)
         self.observed_at_s: float | None = None  # the query in progress's observation (time.monotonic())
         self.late: list[str] = []  # the query in progress's table plans not tried: they would start before its answer
-        self.solve_notes: tuple[str, ...] = ()  # what the solve that made the query in progress's plan noted
+        # what the solve that made the query in progress's plan noted; () while its plan is a table plan
+        self.solve_notes: tuple[str, ...] = ()
         self.earliest_start_s: float | None = None  # [s after the observation] --earliest-start-s; None: the scenario's
         self.load_time_s = time.perf_counter() - t0
 
@@ -174,9 +175,8 @@ class TableQuery:
         costs = self.cost_breakdowns(plan, report, corners)
         latency["total_s"] = time.perf_counter() - t_start
         notes = (found.notes if found is not None else ()) + ((far.note(),) if far is not None else ())
-        solve_notes = self.solve_notes if source in (QuerySource.REFINED, QuerySource.SOLVED_COLD) else ()
         return QueryResult(plan, report, source, corners, latency, refine_failure, notes, costs, tuple(self.late),
-                           solve_notes)
+                           self.solve_notes)
 
     def beyond_carry(self, state: TargetState, corners: list[int]) -> Displacement | None:
         """How far ``state`` is from the nearest of the grid points ``corners`` when a tumble table's plans cannot

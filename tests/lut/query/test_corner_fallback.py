@@ -17,6 +17,7 @@ import pytest
 
 from lut.query import corner_stage
 from lut.query import table_query as tq_module
+from lut.query.corner_stage import cheaper
 from lut.query.interpolation import Candidate
 from lut.query.result import QuerySource
 from lut.query.table_query import TableQuery
@@ -95,6 +96,7 @@ def test_the_heaviest_corner_that_verifies_is_the_answer_without_a_solve(opened,
     assert tried == ["interpolated", "repair interpolated", 1, "repair 1", 2]  # by weight; 0 is never reached
     assert res.source is QuerySource.CORNER and res.corners_used == [2] and res.report.feasible
     assert "corners_s" in res.latency_s and "refine_s" not in res.latency_s
+    assert res.solve_notes == ()  # a table plan: no solve made it
 
 
 def test_only_corner_tries_are_made_then_the_solves_run(opened, monkeypatch):
@@ -243,3 +245,14 @@ def test_a_feasibility_only_table_answers_with_its_first_feasible_corner(opened,
                       failures={"interpolated": "approach"})
     res = opened.query(STATE, budget_s=100.0)
     assert tried == ["interpolated", 0] and res.corners_used == [0]
+
+
+@pytest.mark.parametrize(("cost", "than", "worth"), [
+    (1.0, 1.0, False),  # the same cost
+    (1.0 - 1e-4, 1.0, False),  # lower by exactly the tolerance: a cost the query does not tell apart
+    (1.0 - 2e-4, 1.0, True),
+    (0.0, 0.0, False),  # a feasibility-only table: nothing is cheaper than its first feasible corner
+    (float("nan"), 1.0, False), (0.5, float("nan"), False),  # an unknown cost on either side
+])
+def test_a_corner_is_worth_trying_after_a_feasible_one_only_when_cheaper_beyond_the_tolerance(cost, than, worth):
+    assert cheaper(cost, than) is worth
