@@ -245,7 +245,7 @@ class GraspSearch:
             self._next_guess = nxt.start_guess + 1 if nxt.start_guess >= skip else self._scanned_guesses()
             if not nxt.success:
                 self.approach_s += nxt.solve_time_s
-                self.notes.append(f"the approach from scanned guess {skip + 1} on failed ({nxt.status})")
+                self.notes.append(f"the approach from scanned guess {skip + 1} on failed ({self._failed(nxt)})")
                 continue
             candidate = self._candidate(nxt)
             self.approach_s += candidate.app.solve_time_s
@@ -269,7 +269,7 @@ class GraspSearch:
             where = f"θ_b(0) = ({offset[0]:+.2f}, {offset[1]:+.2f}) ± {BASE_OFFSET_BOX_M:g} m"
             if not app.success:
                 self.approach_s += app.solve_time_s
-                self.notes.append(f"the approach with the chaser waiting at {where} failed ({app.status})")
+                self.notes.append(f"the approach with the chaser waiting at {where} failed ({self._failed(app)})")
                 continue
             self.notes.append(f"a grasp with the chaser waiting at {where}")
             candidate = self._candidate(app)
@@ -285,23 +285,17 @@ class GraspSearch:
             return None
         return self._base_offsets.pop(0) if consume else self._base_offsets[0]
 
-    def _solve_approach(self, warm: ApproachParameters | None, deadline: Deadline | None = None,
-                        **options: object) -> ApproachSolution:
-        """The approach NLP for this plan's state, scan and tracking-rate scale, by ``deadline`` (default the
-        plan's)."""
+    def _solve_approach(self, warm: ApproachParameters | None, **options: object) -> ApproachSolution:
+        """The approach NLP for this plan's state, scan, tracking-rate scale and deadline."""
         return solve_approach(self.planner.approach, self.state, warm, tracking_speed_scale=self.tracking_speed_scale,
-                              scan=self.scan, deadline=self.deadline if deadline is None else deadline, **options)
+                              scan=self.scan, deadline=self.deadline, **options)
 
-    def _resolve_deadline(self, app: ApproachSolution) -> Deadline:
-        """When a re-solve of ``app`` (meeting time within :data:`MEETING_TIME_BOX_S`) ends: the plan's deadline, or a
-        live plan's :data:`~planner.deadline.START_LEAD_S` before the latest start that box allows (later, the grasp
-        could not be braked and answered before its start; one ran 47 s past a start at 28 s, the plan's time)."""
-        return self.deadline.in_time_for(app.start_delay_s + MEETING_TIME_BOX_S, lead_s=START_LEAD_S)
-
-    def _cut_before_start(self, retry: ApproachSolution, by: Deadline) -> str:
-        """The note's tail when ``retry`` ran out of time at ``by``, before the plan's deadline; else ""."""
-        cut = retry.status == SolveOutcome.OUT_OF_TIME and by is not self.deadline
-        return f" (stopped {START_LEAD_S:g} s before the latest start its meeting time allows)" if cut else ""
+    def _failed(self, app: ApproachSolution) -> str:
+        """Why ``app`` failed, for the notes: its status, and whether a live plan's solve stopped in time for its latest
+        start before the plan's deadline (:func:`planner.phases.approach_solve.start_deadline`)."""
+        cut = app.status == SolveOutcome.OUT_OF_TIME and not self.deadline.passed
+        return f"{app.status}" + (f"; stopped {START_LEAD_S:g} s before the latest start its meeting time allows"
+                                  if cut else "")
 
     def _stabilize(self, candidate: GraspCandidate, budget: int | None,
                    screen: int | None = None) -> StabilizationSolution:
@@ -341,15 +335,14 @@ class GraspSearch:
                 raised = more if raised is None else np.maximum(raised, more)
             # near the grasp whose demand was measured (free, a retry drifted back to a grasp that had failed); should
             # the warm start fail, only this grasp's own scanned guess (others are other grasps, tried in turn)
-            own, by = app.start_guess, self._resolve_deadline(app)
-            retry = self._solve_approach(app.parameters, by, max_starts=1 if own >= 0 else 0,
+            own = app.start_guess
+            retry = self._solve_approach(app.parameters, max_starts=1 if own >= 0 else 0,
                                          skip_guesses=max(own, 0), meeting_time_box_s=MEETING_TIME_BOX_S,
                                          collision_raise_m=raised, max_iterations=self.resolve_iterations)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = accumulated(app, retry)
-                self.notes.append(f"the re-solve failed ({retry.status}); the first approach is kept"
-                                  + self._cut_before_start(retry, by))
+                self.notes.append(f"the re-solve failed ({self._failed(retry)}); the first approach is kept")
                 mended = False
                 break
             app = accumulated(retry, app)

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
-from planner.deadline import NO_DEADLINE, Deadline
+from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
@@ -69,7 +69,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     ``max_iter``) bounds the IPOPT iterations of all the starts together; a solve that spends it ends unsuccessful,
     status ``Iteration_Budget_Exhausted`` (IPOPT calls back once per iteration, and once more in a cold start's
     restoration phase). Past ``deadline`` no further start is tried and a running solve ends, status
-    ``Out_Of_Time``. The approach's end and the tracking nodes stay on one side of every singular joint angle
+    ``Out_Of_Time``; a start that can no longer be on time (:func:`start_deadline`) ends the same way and the next
+    is tried. The approach's end and the tracking nodes stay on one side of every singular joint angle
     (:func:`_one_side_of_singularities`). ``meeting_time_box_s`` keeps every start within that many seconds of its
     own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each grasp of ``avoid`` at about its
     angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from a
@@ -102,7 +103,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
             result = replace(result, start_guess=guess)
         iterations += result.iterations
         budget_spent = problem.budget.budget_exhausted and left is not None and limit == left
-        if result.success or budget_spent or problem.budget.out_of_time:
+        if result.success or budget_spent or deadline.passed:
             break
     if result is None:
         return _no_start(problem, _no_guess_status(problem, scan, skip_guesses, deadline),
@@ -287,7 +288,8 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     if collision_raise_m is not None:
         lbg[problem.constraints.slice("collision")] += collision_raise_m
     solver = problem.cold_solver if cold else problem.solver
-    problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations, deadline=deadline)
+    problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations,
+                       deadline=start_deadline(problem, ubw, deadline))
     sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
     elapsed = time.perf_counter() - t0
     stats = solver.stats()
@@ -295,9 +297,17 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
                      elapsed)
 
 
+def start_deadline(problem: ApproachProblem, ubw: Array, deadline: Deadline) -> Deadline:
+    """``deadline``, or for a live plan the instant :data:`~planner.deadline.START_LEAD_S` before the latest start
+    delay the bounds ``ubw`` allow, if that comes first: solved on past it, the grasp could not be tracked, braked and
+    answered before its approach starts (a query's re-solve ran 47 s towards a start 28 s after the observation, and
+    every other meeting time passed meanwhile)."""
+    return deadline.in_time_for(float(ubw[problem.decision.slice("start_delay_s").start]), lead_s=START_LEAD_S)
+
+
 def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: float) -> tuple[Array, Array]:
     """Bounds ``(lbw, ubw)`` with the start delay no earlier than ``earliest_s`` [s] (a live plan's answer cannot come
-    sooner) but within its upper bound (then pinned there: the plan is judged late, not left unsolved)."""
+    sooner) but within its upper bound (then pinned there: such a solve ends at once, :func:`start_deadline`)."""
     if not np.isfinite(earliest_s):
         return lbw, ubw
     delay = problem.decision.slice("start_delay_s").start
@@ -360,7 +370,8 @@ def _within_window(problem: ApproachProblem, start_delay_s: float) -> float:
 
 
 def _planner_stop(problem: ApproachProblem) -> SolveOutcome | None:
-    """Why the planner's callback ended the last solve, if it did: its iteration budget or the plan's deadline."""
+    """Why the planner's callback ended the last solve, if it did: its iteration budget or its deadline (the plan's, or
+    its start's: :func:`start_deadline`)."""
     if problem.budget.budget_exhausted:
         return SolveOutcome.ITERATION_BUDGET_EXHAUSTED
     return SolveOutcome.OUT_OF_TIME if problem.budget.out_of_time else None

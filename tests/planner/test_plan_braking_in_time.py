@@ -77,20 +77,15 @@ def test_a_braking_cut_at_the_lead_is_noted_once():
     assert plan_out.notes == []
 
 
-def test_a_live_approach_re_solve_ends_the_start_lead_before_the_latest_start_its_box_allows():
-    """An approach re-solved for its tracking's rates keeps its meeting time within MEETING_TIME_BOX_S: solved on
-    past START_LEAD_S before the latest start that allows, its grasp could not be tracked, braked and answered before
-    its approach starts (in a query, one such re-solve ran 47 s past a start 28 s after the observation)."""
+def test_an_approach_stopped_for_its_own_start_says_so_the_plans_deadline_does_not():
+    """A live approach solve ends START_LEAD_S before the latest start its bounds allow
+    (``planner.phases.approach_solve.start_deadline``): its note says so while the plan's own deadline has not passed
+    (then it is the plan's budget, noted elsewhere)."""
     from planner.deadline import START_LEAD_S
-    from planner.plan_grasps import MEETING_TIME_BOX_S
 
-    app = SimpleNamespace(start_delay_s=START_S, status=SolveOutcome.OUT_OF_TIME)
-    search = _search(_live(10.0))
-    by = search._resolve_deadline(app)
-    assert by.at_s == pytest.approx(search.deadline.observed_at_s + START_S + MEETING_TIME_BOX_S - START_LEAD_S)
-    assert "stopped 5 s before the latest start its meeting time allows" in search._cut_before_start(app, by)
-    late = _search(_live(10.0))
-    late.deadline = Deadline(time.monotonic() + 5.0).observed(late.deadline.observed_at_s)  # the plan's own ends first
-    assert late._resolve_deadline(app) is late.deadline and late._cut_before_start(app, late.deadline) == ""
-    table_point = Deadline.after(100.0)
-    assert _search(table_point)._resolve_deadline(app) is table_point  # no observation: the point's whole budget
+    app = SimpleNamespace(status=SolveOutcome.OUT_OF_TIME)
+    assert _search(_live(10.0))._failed(app) == (f"Out_Of_Time; stopped {START_LEAD_S:g} s before the latest start "
+                                                  "its meeting time allows")
+    spent = Deadline(time.monotonic() - 1.0).observed(time.monotonic() - 10.0)
+    assert _search(spent)._failed(app) == "Out_Of_Time"
+    assert _search(_live(10.0))._failed(SimpleNamespace(status=SolveOutcome.INFEASIBLE)) == str(SolveOutcome.INFEASIBLE)

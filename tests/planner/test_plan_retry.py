@@ -230,7 +230,7 @@ class _SwitchedDeadline:
     def earliest_start_s() -> float:
         return -math.inf
 
-    def in_time_for(self, start_delay_s: float) -> _SwitchedDeadline:
+    def in_time_for(self, start_delay_s: float, lead_s: float | None = None) -> _SwitchedDeadline:
         return self
 
 

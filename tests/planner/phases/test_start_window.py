@@ -144,7 +144,8 @@ def test_too_early_guesses_take_no_start_the_next_in_time_ones_have_them(scenari
 
 def test_the_earliest_start_raises_the_bound_and_pins_it_at_a_closed_window(scenario_I):
     """No observation: the bounds as they are; within the window: the lower bound raised; past the window's end (an
-    answer that cannot come before the latest start): pinned at the latest, so the plan is judged late, not unsolved."""
+    answer that cannot come before the latest start): pinned at the latest (a live solve there ends at once, by
+    ``start_deadline``: none of its starts could be on time)."""
     problem = Planner(scenario_I).approach
     delay = problem.decision.slice("start_delay_s").start
     latest = scenario_I.phases.max_start_delay_s
@@ -156,3 +157,76 @@ def test_the_earliest_start_raises_the_bound_and_pins_it_at_a_closed_window(scen
     at_end, _ = approach_solve._not_before(problem, problem.lbw, problem.ubw, latest)
     closed, ub = approach_solve._not_before(problem, problem.lbw, problem.ubw, latest + 30.0)
     assert at_end[delay] == latest and closed[delay] == latest == ub[delay]
+
+
+def _live(since_s: float) -> Deadline:
+    observed = time.monotonic() - since_s
+    return Deadline.after(100.0, observed).observed(observed)
+
+
+def test_a_live_solve_ends_the_start_lead_before_the_latest_start_its_bounds_allow(scenario_I):
+    """Solved on past START_LEAD_S before the latest start its bounds allow, no start within them could be tracked,
+    braked and answered in time; the plan's own deadline when that comes first; a table point (no observation) keeps
+    its whole budget."""
+    problem = Planner(scenario_I).approach
+    delay = problem.decision.slice("start_delay_s").start
+    ubw = problem.ubw.copy()
+    ubw[delay] = 35.0
+    live = _live(10.0)
+    assert approach_solve.start_deadline(problem, ubw, live).at_s == pytest.approx(live.observed_at_s + 30.0)
+    soon = Deadline(time.monotonic() + 5.0).observed(live.observed_at_s)  # the plan's own budget ends first
+    assert approach_solve.start_deadline(problem, ubw, soon) is soon
+    table_point = Deadline.after(100.0)
+    assert approach_solve.start_deadline(problem, ubw, table_point) is table_point
+
+
+def test_each_live_ipopt_run_is_armed_with_its_own_starts_deadline(scenario_I, monkeypatch):
+    """The deadline the NLP's callback enforces is the one of the bounds the run is given (a retry's meeting-time box,
+    a re-solve's), not only the plan's."""
+    problem = Planner(scenario_I).approach
+    delay = problem.decision.slice("start_delay_s").start
+    armed = []
+
+    class Armed(Exception):
+        pass
+
+    def arm(*args, deadline, **kwargs):
+        armed.append(deadline)
+        raise Armed
+
+    monkeypatch.setattr(problem.budget, "arm", arm)
+    lbw, ubw = problem.lbw.copy(), problem.ubw.copy()
+    lbw[delay], ubw[delay] = 40.0, 46.0
+    live = _live(10.0)
+    w0 = np.zeros(problem.n_w)
+    w0[delay] = 43.0
+    with pytest.raises(Armed):
+        approach_solve._solve_once(problem, scenario_I.target_state.as_state(), w0, 1.0, lbw, ubw, deadline=live)
+    assert armed[0].at_s == pytest.approx(live.observed_at_s + 46.0 - START_LEAD_S)
+
+
+def test_a_start_stopped_for_its_own_start_gives_way_to_the_next(scenario_I, monkeypatch):
+    """A start that ran out of time for its own latest start is not the plan's deadline: the next guess is tried
+    (before, any solve ended by a deadline ended the loop over starts); once the plan's deadline has passed, none is."""
+    problem = Planner(scenario_I).approach
+    delay = problem.decision.slice("start_delay_s").start
+    started: list[float] = []
+
+    def cut(problem, state, w0, scale, lbw=None, ubw=None, **kwargs):
+        started.append(float(w0[delay]))
+        problem.budget.out_of_time = True  # as the callback leaves it after a deadline
+        return SimpleNamespace(success=False, iterations=1, start_guess=None, status="Out_Of_Time")
+
+    monkeypatch.setattr(approach_solve, "_solve_once", cut)
+    monkeypatch.setattr(approach_solve, "replace", lambda result, **kwargs: result)
+    params = np.zeros(problem.n_params)
+    guesses = [ApproachGuess(params, np.zeros(2), tau, np.zeros(7), np.zeros((3, 7)), 0.1) for tau in (30.0, 50.0)]
+    scan = SimpleNamespace(serves=lambda state, count: True, result=SimpleNamespace(guesses=guesses))
+    state = scenario_I.target_state.as_state()
+    approach_solve.solve_approach(problem, state, max_starts=2, scan=scan, deadline=_live(10.0))
+    assert started == [30.0, 50.0]
+    started.clear()
+    observed = time.monotonic() - 10.0
+    spent = Deadline(time.monotonic() - 0.1).observed(observed)
+    approach_solve.solve_approach(problem, state, max_starts=2, scan=scan, deadline=spent)
+    assert started == [30.0]
