@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import planner.plan_costed as costed
-from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, Deadline
+from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
 from planner.nlp.costs import approach_energy
 
 START_S = 30.0  # the grasp's start delay [s after the observation], kept by every step
@@ -110,12 +110,13 @@ def test_a_live_descent_ends_the_lead_before_its_approach_starts(monkeypatch):
 
 
 def test_a_live_descent_whose_start_is_too_near_tries_no_step_and_says_why(monkeypatch):
-    """Observed 29 s ago, an approach starting at 30 s leaves less than the lead: no step, and a note."""
-    observed = time.monotonic() - (START_S - ANSWER_LEAD_S + 1.0)
+    """Observed 26 s ago, an approach starting at 30 s leaves less than START_LEAD_S: a step's approach solve would end
+    at once (``approach_solve.start_deadline``), so no step is started, and a note."""
+    observed = time.monotonic() - (START_S - START_LEAD_S + 1.0)
     stand = _Stand(np.array([0.5, -0.5]), stable_m=10.0)
     d = _descend(monkeypatch, stand, Deadline.after(100.0, observed).observed(observed))
     assert stand.radii == [] and d.cost_end == d.cost_start
-    assert any(f"the descent stopped {ANSWER_LEAD_S:g} s before the approach's start at 30.0 s" in n for n in d.notes)
+    assert any(f"the descent stopped {START_LEAD_S:g} s before the approach's start at 30.0 s" in n for n in d.notes)
 
 
 class _Direct:
