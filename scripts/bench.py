@@ -25,8 +25,9 @@ The full run refines every query state whose interpolated plan fails verificatio
 Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``. After building a
 table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II_flat_spin``. The same states planned
 with each scenario's variant ``configs/scenarios/<scenario>_NAME.toml``: ``--coverage-variant NAME`` (e.g. ``wide``).
-Each state's record keeps its reach slack (the reach proof's bound); each kind counts the failures nearer the reach's
-edge than every feasible plan, and ``--reach-plot DIR`` draws the plans' outcomes against it.
+Each state's record keeps its reach slack (the reach proof's bound), and a failed plan's its reach windows (the
+meeting times the scan reached); each kind counts the failures nearer the reach's edge than every feasible plan, and
+``--reach-plot DIR`` draws the plans' outcomes against it and the failures' windows against when they answered.
 
 ``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
 ``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget
@@ -172,7 +173,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--reach-plot", type=Path, default=None, metavar="DIR",
                     help="the reach section also draws reach_slack.png here: how far beyond the arm's reach each "
                          "out-of-reach state's grasp stays over the start-delay window; the coverage section "
-                         "coverage_reach.png: each plan's outcome against its state's reach slack")
+                         "coverage_reach.png: each plan's outcome against its state's reach slack, and "
+                         "coverage_windows.png: each failure's reach windows against when its plan answered")
     ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
                     help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
                          "--out file are kept, so one part can be re-measured after a change")

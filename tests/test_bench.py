@@ -486,6 +486,30 @@ def test_a_coverage_states_slack_is_its_reach_proofs_and_the_outcomes_are_drawn_
     assert figure == tmp_path / "coverage_reach.png" and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_a_failures_reach_windows_are_the_scans_reached_meeting_times_and_are_drawn_against_its_answer(tmp_path):
+    """Seed 8's third scenario I flat spin is proven out of reach: no window; scenario I's default state, planned
+    feasible by every plan test, is reached in disjoint intervals inside the start-delay window, on the scan's 2 s
+    grid; only failures get windows, and the figure draws the failures that have any (none: no figure)."""
+    from bench_sections.reach_windows import draw_failure_windows, reach_windows_s, with_windows
+
+    proven = coverage.kind_states(coverage.KINDS[0], 3, 8)[2]
+    assert reach_windows_s("scenario_I", proven) == []
+    default = EnvelopeState(np.array([1.0, 0, 0, 0]), np.array([0, 4.0, 0]))
+    windows = reach_windows_s("scenario_I", default)
+    assert windows and all(0.0 <= a <= b <= 90.0 and a % 2.0 == 0 and b % 2.0 == 0 for a, b in windows)
+    gaps = [later[0] - earlier[1] for earlier, later in zip(windows[:-1], windows[1:], strict=True)]
+    assert all(gap > 2.0 for gap in gaps)  # disjoint, not touching
+    braking = {"feasible_on_time": False, "wall_s": 30.0, "start_delay_s": 40.0, "reasons": [
+        {"reason": "grasp_torque", "phase": "stabilization", "value": 12.0, "limit": 10.0, "margin": -2.0}]}
+    runs = with_windows([{"feasible_on_time": True, "reasons": []}, braking], [default, default], "scenario_I")
+    assert "reach_windows_s" not in runs[0] and runs[1]["reach_windows_s"] == windows
+    figure = draw_failure_windows({"scenario_I_flat_spin": runs}, tmp_path, "8")
+    assert figure == tmp_path / "coverage_windows.png" and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    out_of_reach = with_windows([{"feasible_on_time": False, "reasons": [{"reason": "out of reach (proven)"}]}],
+                                [proven], "scenario_I")
+    assert draw_failure_windows({"scenario_I_flat_spin": out_of_reach}, tmp_path / "none", "8") is None
+
+
 def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):
     import bench
     from bench_sections.common import settings_for

@@ -24,6 +24,7 @@ from bench_sections.envelope import (
     tumble_state,
 )
 from bench_sections.failure_kinds import cut_by_the_budget, failure_kind
+from bench_sections.reach_windows import with_windows
 
 SEED_SALT = 20  # the coverage states' seed is (--seed, issue 20, kind)
 SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "failures_by_first_reason",
@@ -167,7 +168,8 @@ def coverage(settings: Settings) -> dict[str, Any]:
         states = kind_states(kind, c.states, settings.seed)
         slacks = reach_slacks(states, c.scenario_of(kind.scenario))
         plan_jobs = [plan_args(c.scenario_of(kind.scenario), s, c.budget_s) for s in states]
-        plans[kind.name] = (summary(with_slacks(run_all(plan_jobs, settings), slacks)) if c.plans
+        plans[kind.name] = (summary(with_windows(with_slacks(run_all(plan_jobs, settings), slacks), states,
+                                                 c.scenario_of(kind.scenario))) if c.plans
                             else skipped("--coverage-queries-only", SUMMARY_KEYS))
         table = tables.get(kind.name)
         if table is None:
@@ -187,14 +189,18 @@ def coverage(settings: Settings) -> dict[str, Any]:
                      "feasible on time = exit 0 within the budget; a run still going at kill_after_s is killed and "
                      "counted over budget; jobs > 1 runs processes side by side and inflates wall times",
             "plans": plans, "queries": queries, "bars": bars(plans, queries, c.states),
-            "figure": _figure(plans, settings)}
+            **_figures(plans, settings)}
 
 
-def _figure(plans: dict[str, Any], settings: Settings) -> str | None:
-    """With ``--reach-plot DIR``: the plans' outcomes against their states' reach slacks, drawn there; its path."""
+def _figures(plans: dict[str, Any], settings: Settings) -> dict[str, str | None]:
+    """With ``--reach-plot DIR``: the plans' outcomes against their states' reach slacks (``figure``) and the failures'
+    reach windows against when their plans answered (``windows_figure``), drawn there; their paths."""
     measured = {name: p["runs"] for name, p in plans.items() if p.get("runs")}
     if settings.reach_plot is None or not measured:
-        return None
+        return {"figure": None, "windows_figure": None}
     from bench_sections.reach_figure import draw_outcomes_by_reach
+    from bench_sections.reach_windows import draw_failure_windows
 
-    return relative(draw_outcomes_by_reach(measured, settings.reach_plot, str(settings.seed)))
+    windows = draw_failure_windows(measured, settings.reach_plot, str(settings.seed))
+    return {"figure": relative(draw_outcomes_by_reach(measured, settings.reach_plot, str(settings.seed))),
+            "windows_figure": None if windows is None else relative(windows)}
