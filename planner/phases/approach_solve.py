@@ -59,22 +59,22 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
                    collision_raise_m: Array | None = None) -> ApproachSolution:
     """Solve ``problem`` for one observed target state.
 
-    With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that
-    fails, it starts from the ``max_starts`` best scanned initial guesses of ``scan`` (made here when not given
-    or not of this state and count; for a live plan, of those meeting after its answer can come, a guess too early
-    taking no start), best first, less the first ``skip_guesses`` of them (the planner's next
-    grasp when a stabilization failed), and returns the first success (or the last attempt, with its failure
-    status; its ``start_guess`` says which guess). ``tracking_speed_scale`` scales the tracking-node rate
-    bounds (one factor, or one per tracking segment). ``max_iterations`` (None: only the scenario's per-NLP
-    ``max_iter``) bounds the IPOPT iterations of all the starts together; a solve that spends it ends unsuccessful,
-    status ``Iteration_Budget_Exhausted`` (IPOPT calls back once per iteration, and once more in a cold start's
-    restoration phase). Past ``deadline`` no further start is tried and a running solve ends, status
-    ``Out_Of_Time``; a start that can no longer be on time (:func:`start_deadline`) ends the same way and the next
-    is tried. The approach's end and the tracking nodes stay on one side of every singular joint angle
+    With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that fails, it
+    starts from the ``max_starts`` best scanned initial guesses of ``scan`` (made here when not given or not of this
+    state and count; for a live plan, of those meeting after its answer can come, a guess too early taking no
+    start), best first, less the first ``skip_guesses`` of them (the planner's next grasp when a stabilization
+    failed), and returns the first success (or the last attempt, with its failure status; its ``start_guess`` says
+    which guess). ``tracking_speed_scale`` scales the tracking-node rate bounds (one factor, or one per tracking
+    segment). ``max_iterations`` (None: only the scenario's per-NLP ``max_iter``) bounds the IPOPT iterations of all
+    the starts together; a solve that spends it ends unsuccessful, status ``Iteration_Budget_Exhausted`` (IPOPT
+    calls back once per iteration, and once more in a cold start's restoration phase). Past ``deadline`` no further
+    start is tried and a running solve ends, status ``Out_Of_Time``; a start that can no longer be on time
+    (:func:`start_deadline`) ends the same way, and so does this solve (the grasp search goes on from the next
+    guess). The approach's end and the tracking nodes stay on one side of every singular joint angle
     (:func:`_one_side_of_singularities`). ``meeting_time_box_s`` keeps every start within that many seconds of its
     own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each grasp of ``avoid`` at about its
-    angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from a
-    scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried.
+    angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from
+    a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried.
     ``collision_raise_m`` (the collision rows' order) raises those rows' lower bounds [m]
     (:mod:`planner.phases.approach_clearance`: where the distance dipped between via points).
     """
@@ -103,7 +103,9 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
             result = replace(result, start_guess=guess)
         iterations += result.iterations
         budget_spent = problem.budget.budget_exhausted and left is not None and limit == left
-        if result.success or budget_spent or deadline.passed:
+        # a start stopped for time ends this solve, its own start's deadline too: the grasp search goes on from the
+        # next guess, and a re-solve's cold fallback after its warm start ran out of time cost a plan its last guess
+        if result.success or budget_spent or problem.budget.out_of_time:
             break
     if result is None:
         return _no_start(problem, _no_guess_status(problem, scan, skip_guesses, deadline),
