@@ -492,10 +492,13 @@ def test_a_failures_reach_windows_are_the_scans_reached_meeting_times_and_are_dr
     grid; only failures get windows, and the figure draws the failures that have any (none: no figure)."""
     from bench_sections.reach_windows import draw_failure_windows, reach_windows_s, with_windows
 
+    from planner.phases.approach import approach_spline
+
+    sc = coverage.load_scenario_named("scenario_I")
     proven = coverage.kind_states(coverage.KINDS[0], 3, 8)[2]
-    assert reach_windows_s("scenario_I", proven) == []
+    assert reach_windows_s(sc, approach_spline(sc), proven) == []
     default = EnvelopeState(np.array([1.0, 0, 0, 0]), np.array([0, 4.0, 0]))
-    windows = reach_windows_s("scenario_I", default)
+    windows = reach_windows_s(sc, approach_spline(sc), default)
     assert windows and all(0.0 <= a <= b <= 90.0 and a % 2.0 == 0 and b % 2.0 == 0 for a, b in windows)
     gaps = [later[0] - earlier[1] for earlier, later in zip(windows[:-1], windows[1:], strict=True)]
     assert all(gap > 2.0 for gap in gaps)  # disjoint, not touching
@@ -508,6 +511,19 @@ def test_a_failures_reach_windows_are_the_scans_reached_meeting_times_and_are_dr
     out_of_reach = with_windows([{"feasible_on_time": False, "reasons": [{"reason": "out of reach (proven)"}]}],
                                 [proven], "scenario_I")
     assert draw_failure_windows({"scenario_I_flat_spin": out_of_reach}, tmp_path / "none", "8") is None
+
+
+@pytest.mark.parametrize(("reached", "windows"), [
+    ([], []),  # nothing reached: no window
+    ([0.0], [[0.0, 0.0]]),  # one meeting time at the window's start: a window of one instant
+    ([88.0, 90.0], [[88.0, 90.0]]),  # neighbours one step apart, up to the window's end: one window
+    ([0.0, 2.0, 6.0], [[0.0, 2.0], [6.0, 6.0]]),  # one step missing: two windows
+    ([10.0, 12.0, 14.0, 40.0, 42.0], [[10.0, 14.0], [40.0, 42.0]]),
+])
+def test_reached_meeting_times_merge_into_windows_at_their_edges(reached, windows):
+    from bench_sections.reach_windows import merged_windows
+
+    assert merged_windows(reached, 2.0) == windows
 
 
 def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):

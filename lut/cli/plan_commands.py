@@ -12,7 +12,7 @@ from lut.cli.options import (
     target_state_from_options,
     with_earliest_start,
 )
-from lut.cli.plan_output import export_and_verdict, plan_table, refuse_without_plan
+from lut.cli.plan_output import export_and_verdict, plan_lines, refuse_without_plan
 from lut.cli.user_errors import user_errors
 
 
@@ -83,7 +83,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     from planner.deadline import VERIFY_RESERVE_S, Deadline
     from planner.errors import LutgenError
     from planner.plan import NoPlan, OutOfReach, Planner
-    from planner.verify.verifier import summary_lines, verify
+    from planner.verify.verifier import verify
 
     deadline = Deadline.after(check_budget(budget_s), started_s).earlier(VERIFY_RESERVE_S)
     if not offline:  # a live observation: an approach solved later may not start before the answer can come
@@ -105,11 +105,7 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     except (OutOfReach, NoPlan) as exc:  # no trajectory to verify or export
         refuse_without_plan(exc, time.monotonic() - started_s, out_path, csv_path)
     report = verify(result, step_s=verify_step_s)
-    for line in plan_table(result, report):
-        click.echo(line)
-    for note in result.notes:  # e.g. the approach re-solved, or the plan made from another grasp
-        click.echo(f"note: {note}")
-    for line in summary_lines(report):
+    for line in plan_lines(result, report, result.notes):  # notes: e.g. the approach re-solved, another grasp
         click.echo(line)
     export_and_verdict(result, report, out_path, csv_path, None if offline else started_s)
 

@@ -16,6 +16,9 @@ if TYPE_CHECKING:  # imported lazily at run time: `lutgen --help` must not load 
     from planner.verify.verifier import VerifyReport
 
 
+SOLVE_NOTE_PREFIX = "note: the solve: "  # a query's or re-plan's line for a note of the solve that made its plan
+
+
 def plan_table(result: GraspPlan, report: VerifyReport) -> list[str]:
     """The summary lines of a plan and its verification (times [s], offsets [m], torques [N·m])."""
     import numpy as np
@@ -35,6 +38,15 @@ def plan_table(result: GraspPlan, report: VerifyReport) -> list[str]:
     lines.append(f"min distance {np.min(report.min_distance_m):.4f} m over {report.pair_count} pairs; "
                  f"peak grasp torque {np.abs(report.grasp_wrench[:, 3:]).max():.3f} N·m")
     return lines
+
+
+def plan_lines(result: GraspPlan, report: VerifyReport, notes: tuple[str, ...] | list[str] = (),
+               note_prefix: str = "note: ") -> list[str]:
+    """What every command that answers with a plan prints: :func:`plan_table`, each of ``notes`` as one line after
+    ``note_prefix``, then the verification's summary."""
+    from planner.verify.verifier import summary_lines
+
+    return [*plan_table(result, report), *(note_prefix + note for note in notes), *summary_lines(report)]
 
 
 def cost_table(costs: tuple[CostBreakdown, ...], scorer: CostScorer, source: str) -> list[str]:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import click
 
 from lut.cli.options import MAX_BUDGET_S, check_plan_outputs, parse_floats
-from lut.cli.plan_output import export_and_verdict, plan_table
+from lut.cli.plan_output import SOLVE_NOTE_PREFIX, export_and_verdict, plan_lines
 from lut.cli.user_errors import user_errors
 from planner.errors import LutgenError
 
@@ -43,7 +43,6 @@ def replan(plan_path: str, attitude: str, omega_deg_s: str, since_s: float, budg
     from lut.output.plan_replay import replay_inputs, resolve_scenario
     from lut.query.replan import replan as run_replan
     from planner.model.target import TargetState
-    from planner.verify.verifier import summary_lines
 
     if not 0 < budget_s <= MAX_BUDGET_S:
         raise LutgenError(f"--budget-s: must be in (0, {MAX_BUDGET_S:g}] s, got {budget_s}")
@@ -54,11 +53,7 @@ def replan(plan_path: str, attitude: str, omega_deg_s: str, since_s: float, budg
     check_plan_outputs([plan_path, scenario.source, scenario.robot.urdf_path, scenario.target.source], out_path,
                        csv_path)
     result = run_replan(scenario, inputs.parameters, state, since_s, budget_s, started_s)
-    for line in plan_table(result.plan, result.report):
-        click.echo(line)
-    for note in result.solve_notes:
-        click.echo(f"note: the solve: {note}")
-    for line in summary_lines(result.report):
+    for line in plan_lines(result.plan, result.report, result.solve_notes, SOLVE_NOTE_PREFIX):
         click.echo(line)
     x, z = result.plan.approach.base_offset_m
     click.echo(f"re-planned from {plan_path} ({result.source}): base offset kept at ({x:+.4f}, {z:+.4f}) m; the "

@@ -10,7 +10,14 @@ import click
 
 from lut.cli import process_end
 from lut.cli.options import check_budget, check_plan_outputs, parse_floats, with_earliest_start
-from lut.cli.plan_output import cost_table, export_and_verdict, plan_table, query_block, refuse_without_plan
+from lut.cli.plan_output import (
+    SOLVE_NOTE_PREFIX,
+    cost_table,
+    export_and_verdict,
+    plan_lines,
+    query_block,
+    refuse_without_plan,
+)
 from lut.cli.user_errors import user_errors
 from planner.errors import LutgenError
 
@@ -206,7 +213,6 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     from lut.query.table_query import TableQuery
     from planner.model.target import TargetState
     from planner.plan import NoPlan, OutOfReach
-    from planner.verify.verifier import summary_lines
 
     started_s = time.monotonic()  # the budget counts from here: loading the table is part of the query
     check_budget(budget_s)
@@ -232,11 +238,8 @@ def query(table_path: str, attitude: str, omega_deg_s: str, refine: bool, budget
     if result.late:
         click.echo(f"note: not tried, starting too soon (before this answer could come, or --earliest-start-s): "
                    f"{'; '.join(result.late)}")
-    for line in plan_table(result.plan, result.report):
-        click.echo(line)
-    for note in result.solve_notes:  # e.g. the approach re-solved, the braking cut short, the budget ran out
-        click.echo(f"note: the solve: {note}")
-    for line in summary_lines(result.report):
+    # the solve's notes: e.g. the approach re-solved, the braking cut short, the budget ran out
+    for line in plan_lines(result.plan, result.report, result.solve_notes, SOLVE_NOTE_PREFIX):
         click.echo(line)
     lat = result.latency_s
     click.echo(f"source {result.source} (corners {result.corners_used}); table load {tq.load_time_s:.2f} s; "
@@ -270,13 +273,12 @@ def _robust_query(tq: TableQuery, state: TargetState, robust: RobustRequest, bud
     """``query --robust``: every candidate judged, the chosen one printed, exported and given its verdict
     (``started_s``: the command's start, on ``time.monotonic()``'s clock)."""
     from lut.query.robust_choice import candidate_lines, robust_query
-    from planner.verify.verifier import summary_lines
 
     if robust.jobs > 1:  # joblib's loky workers outlive a process that ends at once: the interpreter must end them
         process_end.END_AT_ONCE = False
     choice = robust_query(tq, state, robust, budget_s)
     chosen = choice.chosen
-    for line in plan_table(chosen.plan, chosen.report) + summary_lines(chosen.report):
+    for line in plan_lines(chosen.plan, chosen.report):
         click.echo(line)
     sig = robust.model.sigmas()
     click.echo(f"robust choice at 1-σ {math.degrees(sig[0]):g}° attitude, {math.degrees(sig[3]):g} °/s rate, "

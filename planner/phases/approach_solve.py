@@ -103,8 +103,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
             result = replace(result, start_guess=guess)
         iterations += result.iterations
         budget_spent = problem.budget.budget_exhausted and left is not None and limit == left
-        # a start stopped for time ends this solve, its own start's deadline too: the grasp search goes on from the
-        # next guess, and a re-solve's cold fallback after its warm start ran out of time cost a plan its last guess
+        # stopped for time (its start's deadline too): the grasp search, not this loop, goes on from the next guess
         if result.success or budget_spent or problem.budget.out_of_time:
             break
     if result is None:

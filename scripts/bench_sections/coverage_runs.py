@@ -19,6 +19,7 @@ from typing import Any
 
 from bench_sections.common import ROOT
 from bench_sections.envelope import EnvelopeState
+from lut.cli.plan_output import SOLVE_NOTE_PREFIX
 
 CLI = ("-c", "from lut.cli.main import main; main()")  # `lutgen` of this checkout, whatever is installed
 PHASE = re.compile(r"\((approach|tracking|stabilization)\)")
@@ -158,7 +159,7 @@ def run_record(args: list[str], run: CliRun, budget_s: float) -> dict[str, Any]:
     reasons = failure_reasons(run, budget_s)
     m = run.metrics or {}
     # a query prints its own notes and its solve's (which its plan file keeps too), a plan its plan's: each once
-    printed = [line[len("note: "):].removeprefix("the solve: ") for line in run.stdout.splitlines()
+    printed = [line.removeprefix(SOLVE_NOTE_PREFIX).removeprefix("note: ") for line in run.stdout.splitlines()
                if line.startswith("note: ")]
     notes = list(dict.fromkeys([*printed, *m.get("notes", [])]))
     source = [line.split()[1] for line in run.stdout.splitlines() if line.startswith("source ")]

@@ -7,7 +7,7 @@ failure's windows against when its plan answered."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,34 +16,47 @@ from bench_sections.envelope import EnvelopeState
 from bench_sections.failure_kinds import FailureKind, failure_kind
 from lut.output.plot_style import new_figure, save_figure
 
+if TYPE_CHECKING:
+    from planner.config.scenario import Scenario
+    from planner.nlp.bspline import UniformCubicBSpline
+
 REACHED = "reached"
 WITHOUT_WINDOWS = (FailureKind.OUT_OF_REACH, FailureKind.OUT_OF_REACH_PROVEN)  # no window: nothing to draw
 
 
-def reach_windows_s(scenario: str, state: EnvelopeState) -> list[list[float]]:
-    """The start-delay intervals ``[first, last]`` [s] at which the scan of ``state`` under ``scenario`` reached a
-    meeting time (one scan step apart within an interval; the scenario's whole window, no live floor)."""
-    from planner.model.target_state import TargetState
-    from planner.phases.approach import approach_spline
-    from planner.phases.approach_guess import reach_scan
-    from planner.phases.reach_scan_result import DELAY_STEP_S
-
-    sc = load_scenario_named(scenario)
-    scan = reach_scan(sc, approach_spline(sc), TargetState(state.attitude_wxyz, np.radians(state.omega_body_deg_s)),
-                      1, held_angles=False)
-    reached = [scan.window_s[0] + i * DELAY_STEP_S for i, o in enumerate(scan.outcomes) if o.value == REACHED]
+def merged_windows(reached_s: list[float], step_s: float) -> list[list[float]]:
+    """The meeting times ``reached_s`` [s] (ascending, on a grid ``step_s`` [s] apart) as intervals ``[first, last]``:
+    neighbours one step apart share an interval, a gap of a step or more without a reached time starts a new one."""
     windows: list[list[float]] = []
-    for t in reached:
-        if windows and t - windows[-1][1] <= DELAY_STEP_S + 1e-9:
+    for t in reached_s:
+        if windows and t - windows[-1][1] <= step_s + 1e-9:
             windows[-1][1] = t
         else:
             windows.append([t, t])
     return windows
 
 
+def reach_windows_s(scenario: Scenario, spline: UniformCubicBSpline, state: EnvelopeState) -> list[list[float]]:
+    """The start-delay intervals [s] at which the scan of ``state`` under ``scenario`` (its approach ``spline``)
+    reached a meeting time (the scenario's whole window, no live floor)."""
+    from planner.model.target_state import TargetState
+    from planner.phases.approach_guess import reach_scan
+    from planner.phases.reach_scan_result import DELAY_STEP_S
+
+    scan = reach_scan(scenario, spline, TargetState(state.attitude_wxyz, np.radians(state.omega_body_deg_s)), 1,
+                      held_angles=False)
+    reached = [scan.window_s[0] + i * DELAY_STEP_S for i, o in enumerate(scan.outcomes) if o.value == REACHED]
+    return merged_windows(reached, DELAY_STEP_S)
+
+
 def with_windows(records: list[dict[str, Any]], states: list[EnvelopeState], scenario: str) -> list[dict[str, Any]]:
-    """``records`` (one per state, in order), each failure's with its state's reach windows (``reach_windows_s``)."""
-    return [{**r, "reach_windows_s": reach_windows_s(scenario, s)} if not r["feasible_on_time"] else r
+    """``records`` (one per state, in order), each failure's with its state's reach windows (``reach_windows_s``)
+    under the scenario named ``scenario`` (loaded once)."""
+    from planner.phases.approach import approach_spline
+
+    sc = load_scenario_named(scenario)
+    spline = approach_spline(sc)
+    return [{**r, "reach_windows_s": reach_windows_s(sc, spline, s)} if not r["feasible_on_time"] else r
             for r, s in zip(records, states, strict=True)]
 
 
