@@ -33,6 +33,9 @@ SINGULARITY_CLEARANCE_RAD = 0.2
 # IPOPT iterations a start from a scanned guess gets before the next guess is tried: cold starts that led to feasible
 # plans took 5-78 (two scenario I flat spins 246 and 315); failing ones ran 400-900 and spent the plan's budget
 COLD_START_ITERATIONS = 150
+# IPOPT iterations a base-pinned start of an Eq. 16 solve gets: where the optimum at the base-offset guess exists it
+# converged in 11-15 (scenario I flat spins); where it does not (scenario II) it ran 100-400 and failed, 25-52 s a plan
+PINNED_START_ITERATIONS = 40
 # a retry's meeting time keeps at least this far [s] from those of the grasps already tried (a grasp 1 s away is the
 # same grasp: scenario II's retries met at 37.8 s twice, at the touching edges of their guesses' boxes)
 AVOID_GAP_S = 2.0
@@ -80,7 +83,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     """
     t0 = time.perf_counter()
     warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, max_starts, tracking_speed_scale,
-                                                        skip_guesses, deadline)
+                                                        skip_guesses, deadline, max_iterations)
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     n_warm = 0 if warm_start is None else 1
@@ -194,9 +197,11 @@ def approach_cost(problem: ApproachProblem, state: TargetState, start: ApproachP
 def _base_pinned_first(problem: ApproachProblem, state: TargetState,
                        warm_start: ApproachParameters | ApproachSolution | None, max_starts: int,
                        tracking_speed_scale: float | Array, skip_guesses: int, deadline: Deadline,
+                       max_iterations: int | None = None,
                        ) -> tuple[ApproachParameters | ApproachSolution | None, ApproachSolution | None, int]:
     """``(warm start, failed result, iterations)`` after the base-pinned solve a cold first solve with the
-    approach-energy cost makes first (no solve otherwise).
+    approach-energy cost makes first (no solve otherwise), each start within :data:`PINNED_START_ITERATIONS` and
+    all within ``max_iterations`` (the whole solve's, which the free starts then share).
 
     Eq. 16 is smallest at the base-offset guess, but free-base starts lead IPOPT into local minima where the
     stopping room and the tracking rates hold the base away: solve with the base pinned first; if that
@@ -204,7 +209,7 @@ def _base_pinned_first(problem: ApproachProblem, state: TargetState,
     """
     if not problem.scenario.costs.approach_energy > 0 or skip_guesses != 0:
         return warm_start, None, 0
-    pinned = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale, deadline)
+    pinned = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale, deadline, max_iterations)
     if warm_start is not None:  # a neighbour's plan ended in a local minimum θ_b(0) ≈ 0.27-0.9 m; kept as a fallback
         return (pinned if pinned.success else warm_start), None, pinned.iterations
     return (pinned, None, pinned.iterations) if pinned.success else (None, pinned, pinned.iterations)
@@ -219,20 +224,23 @@ def _no_start(problem: ApproachProblem, status: SolveOutcome, base_offset_m: tup
 
 
 def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts: int,
-                       tracking_speed_scale: float | Array, deadline: Deadline) -> ApproachSolution:
+                       tracking_speed_scale: float | Array, deadline: Deadline,
+                       max_iterations: int | None) -> ApproachSolution:
     """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from guesses made for that base."""
     return solve_approach_from_base(problem, state, problem.scenario.base_offset_guess_m, max_starts,
-                                    tracking_speed_scale, deadline)
+                                    tracking_speed_scale, deadline, max_iterations,
+                                    start_iterations=PINNED_START_ITERATIONS)
 
 
 def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_offset_m: Array, max_starts: int,
                              tracking_speed_scale: float | Array, deadline: Deadline = NO_DEADLINE,
-                             max_iterations: int | None = None, radius_m: float = 0.0) -> ApproachSolution:
+                             max_iterations: int | None = None, radius_m: float = 0.0,
+                             start_iterations: int | None = None) -> ApproachSolution:
     """The NLP with θ_b(0) within ``radius_m`` [m] of ``base_offset_m`` [m] (x, z) per axis (0: fixed there), from up
-    to ``max_starts`` guesses scanned for that base, the first success; with ``max_iterations``, each start within
-    :data:`COLD_START_ITERATIONS` and all within ``max_iterations``. Status ``NO_PINNED_START`` when no meeting time
-    is reachable from that base, ``NO_GUESS_IN_TIME`` when every one reachable comes before a live plan's answer
-    can."""
+    to ``max_starts`` guesses scanned for that base, the first success; each start within ``start_iterations``
+    (default: :data:`COLD_START_ITERATIONS` with ``max_iterations``, else the scenario's ``max_iter``), all within
+    ``max_iterations``. Status ``NO_PINNED_START`` when no meeting time is reachable from that base,
+    ``NO_GUESS_IN_TIME`` when every one reachable comes before a live plan's answer can."""
     t0 = time.perf_counter()
     bx, bz = (float(v) for v in base_offset_m)
     pinned = replace(problem.scenario, base_offset_bounds_m=((bx, bx), (bz, bz)),
@@ -240,8 +248,11 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
     result, iterations = None, 0
     guesses, reached = _guesses_in_time(pinned, problem, state, max_starts, deadline)
+    if start_iterations is None and max_iterations is not None:
+        start_iterations = COLD_START_ITERATIONS
     for g in guesses:
-        limit = None if max_iterations is None else min(COLD_START_ITERATIONS, max_iterations - iterations)
+        left = None if max_iterations is None else max_iterations - iterations
+        limit = min((n for n in (start_iterations, left) if n is not None), default=None)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
                              max_iterations=limit, deadline=deadline)
         iterations += result.iterations

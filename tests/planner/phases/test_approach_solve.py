@@ -143,3 +143,36 @@ def test_an_approach_from_a_base_offset_starts_from_at_most_its_max_starts(scena
         starts.clear()
         failed = solve_approach_from_base(problem, state, np.array([0.0, 0.0]), max_starts, 1.0, max_iterations=100)
         assert not failed.success and len(starts) == max_starts
+
+
+def test_an_energy_solve_s_base_pinned_starts_share_its_iteration_budget():
+    """A cold Eq. 16 solve pins the base first; those starts are part of the solve's iteration budget, each within
+    PINNED_START_ITERATIONS (before, each ran to the scenario's max_iter: scenario II's default state spent 25-52 s
+    there with a 150-iteration budget). Oracle: the iteration caps every IPOPT run was armed with and the iterations
+    they report, with the base's bounds telling pinned starts from free ones."""
+    import numpy as np
+
+    import planner.phases.approach_solve as approach_solve_module
+    from planner.phases.approach_solve import PINNED_START_ITERATIONS
+
+    sc = load_scenario(SCENARIO_II.with_name("scenario_II_energy.toml"))
+    problem = ApproachProblem(sc)
+    base = problem.decision.slice("base_offset_m")
+    runs = []
+    real = approach_solve_module._solve_once
+
+    def record(prob, state, w0, scale, lbw, ubw, **kwargs):
+        out = real(prob, state, w0, scale, lbw, ubw, **kwargs)
+        runs.append((bool(np.all(lbw[base] == ubw[base])), kwargs.get("max_iterations"), out.iterations))
+        return out
+
+    budget = 60
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(approach_solve_module, "_solve_once", record)
+        out = solve_approach(problem, sc.target_state.as_state(), max_iterations=budget)
+    pinned = [r for r in runs if r[0]]
+    assert pinned, "an Eq. 16 cold solve starts with the base pinned"
+    assert all(cap is not None and cap <= PINNED_START_ITERATIONS for _, cap, _ in pinned)
+    # a cold (restoration-phase) start calls back once more than its iteration count
+    assert sum(its for *_, its in runs) <= budget + len(runs)
+    assert out.iterations <= budget + len(runs)
