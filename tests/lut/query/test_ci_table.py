@@ -23,8 +23,10 @@ import pytest
 from lut.build.options import BuildOptions
 from lut.build.sweep import run_build
 from lut.query.table_query import TableQuery
+from lut.table.grid_config import load_grid
 from lut.table.records import PARAMETER_KEYS
 from lut.table.store import Table
+from planner.config.scenario import load_scenario
 from planner.phases.approach import ApproachSolution
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -39,6 +41,12 @@ LUTGEN = str(Path(sys.executable).parent / "lutgen")
 # parameters by far less than 1e-4 (rad for joint parameters, m for the base offset, s for the delay),
 # while a change of the formulation moves them by 1e-2 or more.
 PARAMETER_ATOL = 1e-4
+# Not so the braking's parameters in a feasibility scenario (the CI grid's): its stabilization NLP stops at the first
+# iterate that meets every constraint (planner.nlp.feasibility_stop), not at a converged point, so last-bit
+# differences that shift IPOPT's path move that iterate by a part of one of its last steps. Measured: a rebuild on
+# another CPU and libraries moved one point's braking parameters by up to 1.9e-3 rad, its verified margins within
+# DERIVED_RTOL below; a change of the formulation moves them by 1e-2 or more.
+FEASIBILITY_STOP_ATOL = 5e-3
 # Every other numeric field (costs/*, margins/*, free_axis_angle_rad) is computed by verify from the plan those
 # parameters re-simulate, and is smooth in them: a joint-angle change δ moves a point of the arm or of the held
 # target by ≤ lever × δ (levers ≤ ~3 m from joint 1 to the target's far end), so parameters that repeat far
@@ -76,14 +84,18 @@ def _assert_field_repeats(key: str, a: np.ndarray, b: np.ndarray, status: np.nda
     elif b.dtype.kind in "iu":
         np.testing.assert_array_equal(a, b, err_msg=key)
     else:  # floats, compared where the golden point is feasible (others hold no parameters); NaN/inf must match
-        atol = PARAMETER_ATOL if key in PARAMETER_KEYS else DERIVED_RTOL * _size(b[feasible])
+        atol = {"stabilization_params": FEASIBILITY_STOP_ATOL}.get(key, PARAMETER_ATOL) if key in PARAMETER_KEYS \
+            else DERIVED_RTOL * _size(b[feasible])
         np.testing.assert_allclose(a[feasible], b[feasible], rtol=0, atol=atol, err_msg=key)
 
 
 @pytest.mark.slow
 def test_ci_grid_rebuild_equals_the_golden_table(tmp_path):
     """A rebuild repeats every per-point field of the golden table (whatever fields it has), within the tolerances
-    above: parameters to 1e-4, verify's costs and margins to 1e-3 relative, status and strings exactly."""
+    above: parameters to 1e-4 (a feasibility scenario's braking 5e-3), verify's costs and margins to 1e-3 relative,
+    status and strings exactly."""
+    costs = load_scenario(load_grid(CI_GRID).scenario_path).costs
+    assert costs.attitude_disturbance == costs.peak_wrench == 0, "a costed braking converges: FEASIBILITY_STOP_ATOL"
     out = tmp_path / "ci.h5"
     summary = run_build(CI_GRID, out, BuildOptions(jobs=2, progress=False))
     assert summary.counts["pending"] == 0 and summary.counts["failed"] == 0, summary.failures
