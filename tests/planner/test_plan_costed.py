@@ -26,6 +26,7 @@ class _Stand:
         self.theta0, self.stable_m = theta0, stable_m
         self.radii: list[float] = []
         self.deadlines: list[Deadline] = []
+        self.stalls: list = []  # the stall rule each step's braking was armed with
         self.approach = "costed NLP"
 
     def solve(self, problem, state, anchor, radius_m, scale, max_iterations, deadline):
@@ -38,8 +39,13 @@ class _Stand:
     def candidate(self, app):
         ok = bool(np.all(np.abs(app.base_offset_m - self.theta0) <= self.stable_m))
         stab = SimpleNamespace(success=ok, params=np.zeros(3), solve_time_s=1.0)
+
+        def stabilize(warm, budget, screen, deadline, stall=None):
+            self.stalls.append(stall)
+            return stab
+
         return SimpleNamespace(app=app, tracking=SimpleNamespace(peak_rate_demand=1.0), approach_samples=None,
-                               stabilize=lambda warm, budget, screen, deadline: stab)
+                               stabilize=stabilize)
 
 
 def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE) -> costed.CostDescent:
@@ -76,6 +82,7 @@ def test_thin_stabilizable_set_keeps_only_steps_inside_it(monkeypatch):
     assert np.all(np.abs(theta - theta0) <= 0.03 + 1e-12)
     assert d.cost_end == pytest.approx(approach_energy(theta)) and d.cost_end < d.cost_start
     assert d.steps_kept >= 1 and d.steps_refused >= 2
+    assert stand.stalls and all(rule is costed.STEP_STALL for rule in stand.stalls)  # a refused braking ends early
     assert min(r for r in stand.radii) >= costed.MIN_RADIUS_M
     assert len(stand.radii) <= costed.MAX_STEPS + 1
 
