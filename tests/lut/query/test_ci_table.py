@@ -84,9 +84,14 @@ def _assert_field_repeats(key: str, a: np.ndarray, b: np.ndarray, status: np.nda
     elif b.dtype.kind in "iu":
         np.testing.assert_array_equal(a, b, err_msg=key)
     else:  # floats, compared where the golden point is feasible (others hold no parameters); NaN/inf must match
-        atol = {"stabilization_params": FEASIBILITY_STOP_ATOL}.get(key, PARAMETER_ATOL) if key in PARAMETER_KEYS \
-            else DERIVED_RTOL * _size(b[feasible])
-        np.testing.assert_allclose(a[feasible], b[feasible], rtol=0, atol=atol, err_msg=key)
+        np.testing.assert_allclose(a[feasible], b[feasible], rtol=0, atol=_atol(key, b[feasible]), err_msg=key)
+
+
+def _atol(key: str, golden: np.ndarray) -> float:
+    """The absolute tolerance of a float field against its ``golden`` values (the constants above)."""
+    if key == "stabilization_params":
+        return FEASIBILITY_STOP_ATOL
+    return PARAMETER_ATOL if key in PARAMETER_KEYS else DERIVED_RTOL * _size(golden)
 
 
 @pytest.mark.slow

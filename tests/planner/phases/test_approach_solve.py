@@ -147,7 +147,7 @@ def test_an_approach_from_a_base_offset_starts_from_at_most_its_max_starts(scena
 
 def test_an_energy_solve_s_base_pinned_starts_share_its_iteration_budget():
     """A cold Eq. 16 solve pins the base first; those starts are part of the solve's iteration budget, each within
-    PINNED_START_ITERATIONS (before, each ran to the scenario's max_iter: scenario II's default state spent 25-52 s
+    PINNED_START_ITERATIONS (before, each ran to the scenario's max_iter: scenario II's states spent 17-52 s
     there with a 150-iteration budget). Oracle: the iteration caps every IPOPT run was armed with and the iterations
     they report, with the base's bounds telling pinned starts from free ones."""
     import numpy as np
@@ -176,3 +176,31 @@ def test_an_energy_solve_s_base_pinned_starts_share_its_iteration_budget():
     # a cold (restoration-phase) start calls back once more than its iteration count
     assert sum(its for *_, its in runs) <= budget + len(runs)
     assert out.iterations <= budget + len(runs)
+
+
+@pytest.mark.parametrize(("budget", "caps"), [(None, [40, 40, 40]), (150, [40, 40, 40]), (60, [40, 20]), (30, [30])])
+def test_each_pinned_start_gets_at_most_its_cap_and_what_is_left(scenario_and_problem, budget, caps, monkeypatch):
+    """Every base-pinned start fails at its cap (a stand-in IPOPT run that spends all it is given): each gets
+    min(PINNED_START_ITERATIONS, what the solve's budget leaves), no start follows a spent budget, and without a
+    budget (a table point's warm plan) each still gets the cap, not the scenario's max_iter."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    import planner.phases.approach_solve as approach_solve_module
+    from planner.nlp.outcome import SolveOutcome
+    from planner.phases.approach_solve import _solve_base_pinned
+
+    sc, problem = scenario_and_problem
+    state = sc.target_state.as_state()
+    armed = []
+    failed = approach_solve_module._no_start(problem, SolveOutcome.ITERATION_BUDGET_EXHAUSTED, (0.0, 0.0), 0.0)
+
+    def spend_all(prob, st, w0, scale, lbw, ubw, max_iterations=None, **kwargs):
+        armed.append(max_iterations)
+        return replace(failed, iterations=sc.solver.max_iter if max_iterations is None else max_iterations)
+
+    monkeypatch.setattr(approach_solve_module, "_solve_once", spend_all)
+    out = _solve_base_pinned(problem, state, 3, 1.0, approach_solve_module.NO_DEADLINE, budget)
+    assert armed == caps and out.iterations == sum(caps) and not out.success
+    assert np.all(np.asarray(armed) <= approach_solve_module.PINNED_START_ITERATIONS)
