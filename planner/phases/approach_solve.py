@@ -95,12 +95,12 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         if left is not None and left <= 0:
             break
         cold = guess is not None
-        limit = min(left if left is not None else np.inf, COLD_START_ITERATIONS if cold else np.inf)
+        limit = _start_limit(COLD_START_ITERATIONS if cold else None, left)
         lbw, ubw = _meeting_time_box(problem, w0, meeting_time_box_s, _avoided_s(avoid, angle))
         if lbw is None:
             continue
         result = _solve_once(problem, state, w0, tracking_speed_scale, lbw, ubw, cold=cold,
-                             max_iterations=None if limit == np.inf else int(limit), deadline=deadline,
+                             max_iterations=limit, deadline=deadline,
                              collision_raise_m=collision_raise_m)
         if cold:
             result = replace(result, start_guess=guess)
@@ -197,7 +197,7 @@ def approach_cost(problem: ApproachProblem, state: TargetState, start: ApproachP
 def _base_pinned_first(problem: ApproachProblem, state: TargetState,
                        warm_start: ApproachParameters | ApproachSolution | None, max_starts: int,
                        tracking_speed_scale: float | Array, skip_guesses: int, deadline: Deadline,
-                       max_iterations: int | None = None,
+                       max_iterations: int | None,
                        ) -> tuple[ApproachParameters | ApproachSolution | None, ApproachSolution | None, int]:
     """``(warm start, failed result, iterations)`` after the base-pinned solve a cold first solve with the
     approach-energy cost makes first (no solve otherwise), each start within :data:`PINNED_START_ITERATIONS` and
@@ -248,11 +248,9 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
     lbw, ubw = _base_box(problem, np.array([bx, bz]), radius_m)
     result, iterations = None, 0
     guesses, reached = _guesses_in_time(pinned, problem, state, max_starts, deadline)
-    if start_iterations is None and max_iterations is not None:
-        start_iterations = COLD_START_ITERATIONS
+    cap = COLD_START_ITERATIONS if start_iterations is None and max_iterations is not None else start_iterations
     for g in guesses:
-        left = None if max_iterations is None else max_iterations - iterations
-        limit = min((n for n in (start_iterations, left) if n is not None), default=None)
+        limit = _start_limit(cap, None if max_iterations is None else max_iterations - iterations)
         result = _solve_once(problem, state, decision_vector(g), tracking_speed_scale, lbw, ubw, cold=True,
                              max_iterations=limit, deadline=deadline)
         iterations += result.iterations
@@ -263,6 +261,12 @@ def solve_approach_from_base(problem: ApproachProblem, state: TargetState, base_
         why = SolveOutcome.NO_GUESS_IN_TIME if reached else SolveOutcome.NO_PINNED_START
         return _no_start(problem, why, (bx, bz), time.perf_counter() - t0)
     return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+
+
+def _start_limit(cap: int | None, left: int | None) -> int | None:
+    """IPOPT iterations the next start may take: at most ``cap`` a start and the ``left`` of a solve's budget (None:
+    that one does not bound it; both None: the scenario's ``max_iter`` alone)."""
+    return min((n for n in (cap, left) if n is not None), default=None)
 
 
 def _guesses_in_time(scenario: Scenario, problem: ApproachProblem, state: TargetState, count: int,

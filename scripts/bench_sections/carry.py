@@ -62,7 +62,6 @@ def carried(planner: Any, state: Any, parameters: Any) -> dict[str, Any]:
 def kind_carry(kind: Any, n: int, seed: int, budget_s: float) -> dict[str, Any]:
     """One kind: ``n`` cold plans (each within ``budget_s`` [s]), each feasible one carried to every displacement."""
     from planner.deadline import Deadline
-    from planner.model.target_state import TargetState
     from planner.plan import OutOfReach, Planner
     from planner.verify.verifier import verify
 
@@ -74,7 +73,7 @@ def kind_carry(kind: Any, n: int, seed: int, budget_s: float) -> dict[str, Any]:
     planned = 0
     for i, s in enumerate(kind_states(kind, n, seed)):
         axis = _unit(rng)  # drawn for every state, so the directions do not depend on which plans are feasible
-        state = TargetState(s.attitude_wxyz, np.radians(s.omega_body_deg_s))
+        state = s.target_state()
         try:
             plan = planner.plan(state, deadline=Deadline.after(budget_s))
         except OutOfReach:

@@ -81,11 +81,10 @@ def reach_slacks(states: list[EnvelopeState], scenario: str) -> list[float]:
     """Each state's reach slack [m] (:class:`planner.phases.reach_proof.ReachProof`): how far the grasp's wrist point
     stays beyond the arm's reach at best over the window; negative, how deep within it it comes (milliseconds a
     state)."""
-    from planner.model.target_state import TargetState
     from planner.phases.reach_proof import reach_proof
 
     sc = load_scenario_named(scenario)
-    return [reach_proof(sc, TargetState(s.attitude_wxyz, np.radians(s.omega_body_deg_s))).slack_m for s in states]
+    return [reach_proof(sc, s.target_state()).slack_m for s in states]
 
 
 def reach_edge(records: list[dict[str, Any]]) -> dict[str, Any] | None:
@@ -165,12 +164,11 @@ def coverage(settings: Settings) -> dict[str, Any]:
             reason = f"only {', '.join(c.kinds)} (--trim or --coverage-kinds)"
             plans[kind.name] = queries[kind.name] = skipped(reason, SUMMARY_KEYS)
             continue
-        states = kind_states(kind, c.states, settings.seed)
-        slacks = reach_slacks(states, c.scenario_of(kind.scenario))
-        plan_jobs = [plan_args(c.scenario_of(kind.scenario), s, c.budget_s) for s in states]
-        plans[kind.name] = (summary(with_windows(with_slacks(run_all(plan_jobs, settings), slacks), states,
-                                                 c.scenario_of(kind.scenario))) if c.plans
-                            else skipped("--coverage-queries-only", SUMMARY_KEYS))
+        states, scenario = kind_states(kind, c.states, settings.seed), c.scenario_of(kind.scenario)
+        slacks = reach_slacks(states, scenario)
+        plan_jobs = [plan_args(scenario, s, c.budget_s) for s in states]
+        plans[kind.name] = (summary(with_windows(with_slacks(run_all(plan_jobs, settings), slacks), states, scenario))
+                            if c.plans else skipped("--coverage-queries-only", SUMMARY_KEYS))
         table = tables.get(kind.name)
         if table is None:
             queries[kind.name] = skipped(f"no table for {kind.name} in {relative(c.tables)}/", SUMMARY_KEYS)

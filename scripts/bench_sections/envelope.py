@@ -7,10 +7,14 @@ Shared by the benchmark's coverage section and ``scripts/make_truth_plans.py``. 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
+
+if TYPE_CHECKING:
+    from planner.model.target_state import TargetState
 
 Array = NDArray[np.float64]
 TUMBLE_RATE_MAX_DEG_S = 4.0  # paper §3: up to ±4 °/s about each body axis
@@ -23,6 +27,12 @@ class EnvelopeState:
 
     attitude_wxyz: Array
     omega_body_deg_s: Array
+
+    def target_state(self) -> TargetState:
+        """This state as the planner's :class:`~planner.model.target_state.TargetState` (body rates in rad/s)."""
+        from planner.model.target_state import TargetState
+
+        return TargetState(self.attitude_wxyz, np.radians(self.omega_body_deg_s))
 
 
 def major_axis_body(inertia_body_kg_m2: Array) -> Array:

@@ -16,8 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
-import numpy as np
-
 from bench_sections.common import Settings, load_scenario_named, relative
 from bench_sections.coverage import KINDS, kind_states
 
@@ -44,7 +42,6 @@ class OutOfReachState:
 def reach(settings: Settings) -> dict[str, Any]:
     """Per kind: how many of the coverage states are out of reach under each what-if, which (indices), how many of
     them the reach proof settles, and each one's certified slack [m]."""
-    from planner.model.target_state import TargetState
     from planner.phases.approach import approach_spline
     from planner.phases.approach_guess import reach_scan
 
@@ -55,8 +52,7 @@ def reach(settings: Settings) -> dict[str, Any]:
         if c.kinds is not None and kind.name not in c.kinds:
             continue
         base = load_scenario_named(kind.scenario)
-        states = [TargetState(s.attitude_wxyz, np.radians(s.omega_body_deg_s))
-                  for s in kind_states(kind, c.states, settings.seed)]
+        states = [s.target_state() for s in kind_states(kind, c.states, settings.seed)]
         entry: dict[str, Any] = {}
         for name, change in WHAT_IFS.items():
             sc = change(base)

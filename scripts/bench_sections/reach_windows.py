@@ -9,8 +9,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from bench_sections.common import load_scenario_named
 from bench_sections.envelope import EnvelopeState
 from bench_sections.failure_kinds import FailureKind, failure_kind
@@ -20,7 +18,6 @@ if TYPE_CHECKING:
     from planner.config.scenario import Scenario
     from planner.nlp.bspline import UniformCubicBSpline
 
-REACHED = "reached"
 WITHOUT_WINDOWS = (FailureKind.OUT_OF_REACH, FailureKind.OUT_OF_REACH_PROVEN)  # no window: nothing to draw
 
 
@@ -39,13 +36,11 @@ def merged_windows(reached_s: list[float], step_s: float) -> list[list[float]]:
 def reach_windows_s(scenario: Scenario, spline: UniformCubicBSpline, state: EnvelopeState) -> list[list[float]]:
     """The start-delay intervals [s] at which the scan of ``state`` under ``scenario`` (its approach ``spline``)
     reached a meeting time (the scenario's whole window, no live floor)."""
-    from planner.model.target_state import TargetState
     from planner.phases.approach_guess import reach_scan
-    from planner.phases.reach_scan_result import DELAY_STEP_S
+    from planner.phases.reach_scan_result import DELAY_STEP_S, MeetingOutcome
 
-    scan = reach_scan(scenario, spline, TargetState(state.attitude_wxyz, np.radians(state.omega_body_deg_s)), 1,
-                      held_angles=False)
-    reached = [scan.window_s[0] + i * DELAY_STEP_S for i, o in enumerate(scan.outcomes) if o.value == REACHED]
+    scan = reach_scan(scenario, spline, state.target_state(), 1, held_angles=False)
+    reached = [scan.window_s[0] + i * DELAY_STEP_S for i, o in enumerate(scan.outcomes) if o == MeetingOutcome.REACHED]
     return merged_windows(reached, DELAY_STEP_S)
 
 
