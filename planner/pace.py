@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 MIN_WALL_S = 1.0
 # the slowdown is capped here: a lead of 4× START_LEAD_S is 20 s of a 100 s budget
 MAX_SLOWDOWN = 4.0
-# below this the slowdown reads 1: the leads were measured on machines this busy, and an idle plan (1.002 measured)
-# keeps the bounds, and so the plans, it had before paces were measured
+# below this the slowdown reads 1: the leads were measured with each plan on a core of its own, and such a plan (1.002
+# measured) keeps the bounds, and so the plans, it had before paces were measured
 IDLE_SLOWDOWN = 1.25
 
 
