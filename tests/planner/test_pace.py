@@ -14,6 +14,7 @@ from planner.pace import IDLE_SLOWDOWN, MAX_SLOWDOWN, MIN_WALL_S, Pace, cpu_time
 
 @pytest.mark.parametrize(("wall_s", "cpu_s", "slowdown"), [
     (MIN_WALL_S / 2, 0.0, 1.0),  # too soon to tell: the idle core's leads
+    (MIN_WALL_S, 0.0, MAX_SLOWDOWN),  # measured from MIN_WALL_S on
     (10.0, 10.0, 1.0),  # computing all the time: idle
     (10.0, 10.0 / 1.2, 1.0),  # within the idle band
     (10.0, 10.0 / IDLE_SLOWDOWN, IDLE_SLOWDOWN),  # at its edge
