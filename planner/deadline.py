@@ -3,9 +3,8 @@
 An operator has 100 s from observing the target to moving the arm, so a plan is bounded as a whole: the
 grasp search starts no new grasp, and every NLP's iteration callback ends its solve, once the deadline has
 passed; what was found by then is verified and reported. A live plan's deadline also knows when its observation
-was made: an approach solved then may not start before the answer can come (:meth:`Deadline.earliest_start_s`),
-by leads that grow with how slowly the plan's process computes (:mod:`planner.pace`). Instants are
-``time.monotonic()`` seconds.
+was made: an approach solved then may not start before the answer can come (:meth:`Deadline.earliest_start_s`).
+Instants are ``time.monotonic()`` seconds.
 """
 
 from __future__ import annotations
@@ -14,20 +13,16 @@ import math
 import time
 from dataclasses import dataclass
 
-from planner.pace import Pace
-
 
 @dataclass(frozen=True)
 class Deadline:
     """The instant ``at_s`` [s, ``time.monotonic()``] a time budget ends; ``inf`` never does. ``what`` names the
     budget in the notes of a plan it cut short. ``observed_at_s`` [s, ``time.monotonic()``]: when the plan's
-    observation was made, for a live plan (None: a table point or an offline plan, whose times are hypothetical).
-    ``pace``: the plan's process's pace, which scales a live plan's leads (None: the idle core's leads)."""
+    observation was made, for a live plan (None: a table point or an offline plan, whose times are hypothetical)."""
 
     at_s: float = math.inf
     what: str = "the plan's time budget"
     observed_at_s: float | None = None
-    pace: Pace | None = None
 
     @classmethod
     def after(cls, budget_s: float | None, since_s: float | None = None) -> Deadline:
@@ -53,49 +48,36 @@ class Deadline:
     def earlier(self, seconds: float, what: str | None = None) -> Deadline:
         """The deadline ``seconds`` [s] sooner: room kept back for what must follow (verification, export), or a
         share of the budget named ``what`` (default: this one's name)."""
-        return Deadline(self.at_s - seconds, self.what if what is None else what, self.observed_at_s, self.pace)
+        return Deadline(self.at_s - seconds, self.what if what is None else what, self.observed_at_s)
 
-    def observed(self, observed_at_s: float, pace: Pace | None = None) -> Deadline:
-        """This deadline, of a live plan whose observation was made at ``observed_at_s`` [s, ``time.monotonic()``],
-        planned in a process whose ``pace`` scales its leads (None: the idle core's)."""
-        return Deadline(self.at_s, self.what, observed_at_s, pace)
-
-    def start_lead_s(self) -> float:
-        """:data:`START_LEAD_S` [s] at this plan's pace: the rest of a plan after its approach solve starts."""
-        return START_LEAD_S * self._slowdown()
-
-    def answer_lead_s(self) -> float:
-        """:data:`ANSWER_LEAD_S` [s] at this plan's pace: the plan's assembly, verify and export."""
-        return ANSWER_LEAD_S * self._slowdown()
-
-    def _slowdown(self) -> float:
-        return 1.0 if self.pace is None else self.pace.slowdown()
+    def observed(self, observed_at_s: float) -> Deadline:
+        """This deadline, of a live plan whose observation was made at ``observed_at_s`` [s, ``time.monotonic()``]."""
+        return Deadline(self.at_s, self.what, observed_at_s)
 
     def in_time_for(self, start_delay_s: float, lead_s: float | None = None) -> Deadline:
-        """This deadline, or for a live plan the instant ``lead_s`` [s] (default :meth:`answer_lead_s`) before an
+        """This deadline, or for a live plan the instant ``lead_s`` [s] (default :data:`ANSWER_LEAD_S`) before an
         approach starting at ``start_delay_s`` [s after the observation] if that comes first: solving on past it, the
         plan would answer after its own start (a table point's or an offline plan's deadline is unchanged)."""
         if self.observed_at_s is None:
             return self
-        start_by_s = self.observed_at_s + start_delay_s - (self.answer_lead_s() if lead_s is None else lead_s)
-        return self if start_by_s >= self.at_s else Deadline(start_by_s, self.what, self.observed_at_s, self.pace)
+        start_by_s = self.observed_at_s + start_delay_s - (ANSWER_LEAD_S if lead_s is None else lead_s)
+        return self if start_by_s >= self.at_s else Deadline(start_by_s, self.what, self.observed_at_s)
 
     def earliest_start_s(self, lead_s: float | None = None) -> float:
         """The earliest start delay [s after the observation] an approach solved now may take: the time since the
-        observation and ``lead_s`` [s] for the rest of the plan (default :meth:`start_lead_s`), rounded up to a whole
+        observation and ``lead_s`` [s] for the rest of the plan (default :data:`START_LEAD_S`), rounded up to a whole
         :data:`FLOOR_STEP_S` (``-inf`` without an observation)."""
         if self.observed_at_s is None:
             return -math.inf
-        floor_s = time.monotonic() - self.observed_at_s + (self.start_lead_s() if lead_s is None else lead_s)
+        floor_s = time.monotonic() - self.observed_at_s + (START_LEAD_S if lead_s is None else lead_s)
         return math.ceil(floor_s / FLOOR_STEP_S) * FLOOR_STEP_S
 
 
 NO_DEADLINE = Deadline()
 # kept back from a budget to verify the plan found and write it out [s]
 VERIFY_RESERVE_S = 5.0
-# a live plan's approach solved now starts at least this long after on an idle core (:meth:`Deadline.start_lead_s`
-# scales it by the plan's pace): the solve itself, the tracking, the braking, verify and the export (README, the
-# planner's constants)
+# a live plan's approach solved now starts at least this long after: the solve itself, the tracking, the braking,
+# verify and the export (README, the planner's constants)
 START_LEAD_S = 5.0
 # a live plan's earliest start is rounded up to a multiple of this [s]: the same state planned again a fraction of a
 # second sooner or later then meets the same bounds, and gets the same plan to the bit (not the next second's)

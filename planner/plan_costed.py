@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.deadline import Deadline
+from planner.deadline import START_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.feasibility_stop import StallRule
@@ -166,12 +166,11 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
              tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> None:
     """Trust-region steps from the current grasp: the full step first, then from :data:`FIRST_RADIUS_M`, doubled
     after a kept step and halved after a refused one; stops after :data:`MAX_STEPS`, below :data:`MIN_RADIUS_M`,
-    when a step gains nothing, or at ``deadline`` (for a live plan, no step starts later than the plan's start lead
-    (:meth:`~planner.deadline.Deadline.start_lead_s`) before its approach's start, which every step keeps: the step's
-    approach solve ends then, its braking the answer lead before the start)."""
-    lead_s = deadline.start_lead_s()
+    when a step gains nothing, or at ``deadline`` (for a live plan, no step starts later than
+    :data:`~planner.deadline.START_LEAD_S` before its approach's start, which every step keeps: the step's approach
+    solve ends then, its braking :data:`~planner.deadline.ANSWER_LEAD_S` before the start)."""
     in_time = deadline.in_time_for(out.candidate.app.start_delay_s)
-    steps_by = deadline.in_time_for(out.candidate.app.start_delay_s, lead_s=lead_s)
+    steps_by = deadline.in_time_for(out.candidate.app.start_delay_s, lead_s=START_LEAD_S)
     radius = np.inf
     for _ in range(MAX_STEPS + 1):
         if steps_by.passed or radius < MIN_RADIUS_M or _at_its_floor(planner, out.cost_end):
@@ -184,7 +183,7 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
         else:
             radius = FIRST_RADIUS_M if not np.isfinite(radius) else radius / 2
     if steps_by.passed and steps_by is not deadline:
-        out.notes.append(f"costed plan: the descent stopped {lead_s:.3g} s before the approach's start at "
+        out.notes.append(f"costed plan: the descent stopped {START_LEAD_S:g} s before the approach's start at "
                          f"{out.candidate.app.start_delay_s:.1f} s after the observation, so that the plan answers "
                          "before it")
 

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
-from planner.deadline import NO_DEADLINE, Deadline
+from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner, accumulated
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.outcome import SolveOutcome
@@ -294,17 +294,15 @@ class GraspSearch:
         """Why ``app`` failed, for the notes: its status, and whether a live plan's solve stopped in time for its latest
         start before the plan's deadline (:func:`planner.phases.approach_solve.start_deadline`)."""
         cut = app.status == SolveOutcome.OUT_OF_TIME and not self.deadline.passed
-        lead_s = self.deadline.start_lead_s()
-        return f"{app.status}" + (f"; stopped {lead_s:.3g} s before the latest start its meeting time allows"
+        return f"{app.status}" + (f"; stopped {START_LEAD_S:g} s before the latest start its meeting time allows"
                                   if cut else "")
 
     def _stabilize(self, candidate: GraspCandidate, budget: int | None,
                    screen: int | None = None) -> StabilizationSolution:
         """The stabilization from ``candidate`` (this plan's warm start, iteration budget, screen and deadline; a
-        live plan's ends :meth:`~planner.deadline.Deadline.answer_lead_s` before ``candidate``'s approach starts: braked
-        later, the plan would answer after its own start)."""
-        lead_s = self.deadline.answer_lead_s()
-        in_time = self.deadline.in_time_for(candidate.app.start_delay_s, lead_s)
+        live plan's ends :data:`~planner.deadline.ANSWER_LEAD_S` before ``candidate``'s approach starts: braked later,
+        the plan would answer after its own start)."""
+        in_time = self.deadline.in_time_for(candidate.app.start_delay_s)
         if in_time.passed:  # no NLP is built or solved: the smooth stop a cold solve starts from, unsolved
             result = candidate.unbraked(SolveOutcome.OUT_OF_TIME)
         else:
@@ -314,7 +312,7 @@ class GraspSearch:
             self.stabilization_s += time.perf_counter() - t0
         if result.status == SolveOutcome.OUT_OF_TIME and in_time is not self.deadline:
             self.notes.append(f"the braking from the grasp at t = {candidate.grasp_time_s:.1f} s stopped "
-                              f"{lead_s:.3g} s before its approach's start ({candidate.app.start_delay_s:.1f} s "
+                              f"{ANSWER_LEAD_S:g} s before its approach's start ({candidate.app.start_delay_s:.1f} s "
                               "after the observation): braked later, the plan would answer after it")
         return result
 

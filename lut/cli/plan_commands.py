@@ -82,14 +82,12 @@ def plan(scenario_path: str, spin_rate_deg_s: float | None, attitude: str | None
     from planner.config.scenario import load_scenario
     from planner.deadline import VERIFY_RESERVE_S, Deadline
     from planner.errors import LutgenError
-    from planner.pace import Pace
     from planner.plan import NoPlan, OutOfReach, Planner
     from planner.verify.verifier import verify
 
-    pace = Pace.from_now()  # the leads of a live plan grow as this process waits for a core (planner/pace.py)
     deadline = Deadline.after(check_budget(budget_s), started_s).earlier(VERIFY_RESERVE_S)
     if not offline:  # a live observation: an approach solved later may not start before the answer can come
-        deadline = deadline.observed(started_s, pace)
+        deadline = deadline.observed(started_s)
     if not 0 < verify_step_s <= 0.02:
         raise LutgenError(f"--verify-step-s: must be in (0, 0.02], got {verify_step_s}")
     sc = load_scenario(scenario_path)

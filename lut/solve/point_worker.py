@@ -39,7 +39,6 @@ from lut.table.records import (
 )
 from planner.deadline import NO_DEADLINE, VERIFY_RESERVE_S, Deadline
 from planner.model.spin_period import repeat_period_s
-from planner.pace import Pace
 from planner.plan_parameters import PlanParameters
 
 if TYPE_CHECKING:
@@ -107,9 +106,9 @@ def plan_deadline(deadline_at_s: float | None, observed_at_s: float | None = Non
     """A solver's plan deadline: ``deadline_at_s`` (a ``time.monotonic()`` instant; None: none) less
     :data:`VERIFY_RESERVE_S` to verify the plan and write the record before the process is killed; of a live plan
     observed at ``observed_at_s`` (a ``time.monotonic()`` instant, one clock for every process of the machine) when
-    given (a query's or a re-plan's solve, its leads at this process's pace from now; None: a table point)."""
+    given (a query's or a re-plan's solve; None: a table point)."""
     deadline = NO_DEADLINE if deadline_at_s is None else Deadline(deadline_at_s).earlier(VERIFY_RESERVE_S)
-    return deadline if observed_at_s is None else deadline.observed(observed_at_s, Pace.from_now())
+    return deadline if observed_at_s is None else deadline.observed(observed_at_s)
 
 
 def warm_grasp_deadline(deadline: Deadline) -> Deadline:

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.config.scenario import Scenario
-from planner.deadline import NO_DEADLINE, Deadline
+from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
@@ -314,12 +314,11 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
 
 
 def start_deadline(problem: ApproachProblem, ubw: Array, deadline: Deadline) -> Deadline:
-    """``deadline``, or for a live plan the instant :meth:`~planner.deadline.Deadline.start_lead_s` before the latest
-    start delay the bounds ``ubw`` allow, if that comes first: solved on past it, the grasp could not be tracked, braked
-    and answered before its approach starts (a query's re-solve ran 47 s towards a start 28 s after the observation, and
+    """``deadline``, or for a live plan the instant :data:`~planner.deadline.START_LEAD_S` before the latest start
+    delay the bounds ``ubw`` allow, if that comes first: solved on past it, the grasp could not be tracked, braked and
+    answered before its approach starts (a query's re-solve ran 47 s towards a start 28 s after the observation, and
     every other meeting time passed meanwhile)."""
-    return deadline.in_time_for(float(ubw[problem.decision.slice("start_delay_s").start]),
-                                lead_s=deadline.start_lead_s())
+    return deadline.in_time_for(float(ubw[problem.decision.slice("start_delay_s").start]), lead_s=START_LEAD_S)
 
 
 def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: float) -> tuple[Array, Array]:

@@ -70,31 +70,3 @@ def test_a_live_plan_must_stop_solving_the_lead_before_its_approach_starts():
     assert live.in_time_for(200.0) == live
     assert budget.in_time_for(0.0) == budget and NO_DEADLINE.in_time_for(0.0) == NO_DEADLINE  # no observation
     assert NO_DEADLINE.observed(observed).in_time_for(ANSWER_LEAD_S - 1.0).passed  # its start is within the lead
-
-
-class _Pace:
-    """A pace whose slowdown the test sets."""
-
-    def __init__(self, slowdown: float) -> None:
-        self.value = slowdown
-
-    def slowdown(self) -> float:
-        return self.value
-
-
-def test_a_live_plans_leads_grow_with_its_pace_and_every_share_keeps_it():
-    """At a slowdown of 2 the start lead is 2 × START_LEAD_S and the answer lead 2 × ANSWER_LEAD_S, in the earliest
-    start and in ``in_time_for`` alike; ``earlier`` and ``in_time_for`` keep the pace; no pace: the idle core's
-    leads."""
-    observed = time.monotonic() - 7.0
-    pace = _Pace(2.0)
-    live = Deadline.after(100.0, observed).observed(observed, pace)
-    assert live.start_lead_s() == 2 * START_LEAD_S and live.answer_lead_s() == 2 * ANSWER_LEAD_S
-    floor = live.earliest_start_s()
-    assert 7.0 + 2 * START_LEAD_S <= floor <= 7.0 + 2 * START_LEAD_S + 2 * FLOOR_STEP_S
-    assert live.in_time_for(30.0).at_s == observed + 30.0 - 2 * ANSWER_LEAD_S
-    assert live.earlier(5.0).pace is pace and live.in_time_for(30.0).pace is pace
-    pace.value = 1.0  # read when asked, not when the deadline was made
-    assert live.start_lead_s() == START_LEAD_S
-    idle = Deadline.after(100.0, observed).observed(observed)
-    assert idle.start_lead_s() == START_LEAD_S and idle.answer_lead_s() == ANSWER_LEAD_S

@@ -89,15 +89,3 @@ def test_an_approach_stopped_for_its_own_start_says_so_the_plans_deadline_does_n
     spent = Deadline(time.monotonic() - 1.0).observed(time.monotonic() - 10.0)
     assert _search(spent)._failed(app) == "Out_Of_Time"
     assert _search(_live(10.0))._failed(SimpleNamespace(status=SolveOutcome.INFEASIBLE)) == str(SolveOutcome.INFEASIBLE)
-
-
-def test_on_a_slow_machine_the_braking_ends_the_paced_lead_before_the_start_and_says_how_long():
-    """A plan whose process waits for a core (slowdown 2) stops braking 2 × ANSWER_LEAD_S before the start, and its
-    note names that lead."""
-    observed = time.monotonic() - 10.0
-    slow = Deadline.after(100.0, observed).observed(observed, SimpleNamespace(slowdown=lambda: 2.0))
-    search, grasp = _search(slow), _Grasp(status=SolveOutcome.OUT_OF_TIME)
-    search._stabilize(grasp, 120)
-    (given,) = grasp.deadlines
-    assert given.at_s == pytest.approx(observed + START_S - 2 * ANSWER_LEAD_S)
-    assert f"stopped {2 * ANSWER_LEAD_S:g} s before its approach's start" in search.notes[0]

@@ -20,7 +20,7 @@ import planner.phases.approach_guess as approach_guess_module
 import planner.phases.approach_solve as approach_solve_module
 import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
-from planner.deadline import ANSWER_LEAD_S, START_LEAD_S, Deadline
+from planner.deadline import Deadline
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach_clearance import ClearanceDip
 from planner.phases.approach_guess import angles_apart
@@ -229,14 +229,6 @@ class _SwitchedDeadline:
     @staticmethod
     def earliest_start_s() -> float:
         return -math.inf
-
-    @staticmethod
-    def start_lead_s() -> float:
-        return START_LEAD_S
-
-    @staticmethod
-    def answer_lead_s() -> float:
-        return ANSWER_LEAD_S
 
     def in_time_for(self, start_delay_s: float, lead_s: float | None = None) -> _SwitchedDeadline:
         return self

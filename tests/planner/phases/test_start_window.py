@@ -180,20 +180,6 @@ def test_a_live_solve_ends_the_start_lead_before_the_latest_start_its_bounds_all
     assert approach_solve.start_deadline(problem, ubw, table_point) is table_point
 
 
-def test_on_a_slow_machine_a_live_solve_starts_and_ends_by_the_paced_lead(scenario_I):
-    """A plan whose process reads a slowdown of 2: the approach's floor is the time since the observation plus
-    2 × START_LEAD_S, and a solve ends 2 × START_LEAD_S before the latest start its bounds allow."""
-    problem = Planner(scenario_I).approach
-    delay = problem.decision.slice("start_delay_s").start
-    observed = time.monotonic() - 20.0
-    slow = Deadline.after(100.0, observed).observed(observed, SimpleNamespace(slowdown=lambda: 2.0))
-    ubw = problem.ubw.copy()
-    ubw[delay] = 60.0
-    assert approach_solve.start_deadline(problem, ubw, slow).at_s == pytest.approx(observed + 60.0 - 2 * START_LEAD_S)
-    floor = approach_solve._not_before(problem, problem.lbw, problem.ubw, slow.earliest_start_s())[0][delay]
-    assert 20.0 + 2 * START_LEAD_S <= floor <= 20.0 + 2 * START_LEAD_S + 2 * FLOOR_STEP_S
-
-
 def test_each_live_ipopt_run_is_armed_with_its_own_starts_deadline(scenario_I, monkeypatch):
     """The deadline the NLP's callback enforces is the one of the bounds the run is given (a retry's meeting-time box,
     a re-solve's), not only the plan's."""
