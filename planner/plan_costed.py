@@ -112,8 +112,9 @@ def plan_costed(planner: PhasePlanner, feasibility: Callable[[], PhasePlanner], 
         candidate, stab = search.run()
         found = search.timings_s()
         out = CostDescent(candidate, stab, {k: timings_s[k] + found[k] for k in timings_s},
-                          ["costed plan: the costed approach's own optimum could not be braked (or was not solved in "
-                           "its share of the budget): the feasibility plan's grasp first", *search.notes])
+                          ["costed plan: the costed approach's own optimum could not be braked (or none converged "
+                           "with the base pinned at its guess, or it was not solved in its share of the budget): the "
+                           "feasibility plan's grasp first", *search.notes])
         if not out.stabilized:
             return out
         out.cost_start = out.cost_end = approach_cost(planner.approach, state, candidate.app)

@@ -36,6 +36,10 @@ COLD_START_ITERATIONS = 150
 # IPOPT iterations a base-pinned start of an Eq. 16 solve gets: where the optimum at the base-offset guess exists it
 # converged in 11-15 (scenario I flat spins); where it does not (scenario II) it ran 100-400 and failed, 17-52 s a plan
 PINNED_START_ITERATIONS = 40
+# a cold Eq. 16 solve pins the base from this many guesses, and ends when none converges: at 38 scenario I flat spins
+# traced the first converged at 37, the second at the 38th; none at any scenario II state, where the free starts then
+# found an optimum whose braking was screened out (README, "The measurements behind the planner's constants")
+PINNED_STARTS = 2
 # a retry's meeting time keeps at least this far [s] from those of the grasps already tried (a grasp 1 s away is the
 # same grasp: scenario II's retries met at 37.8 s twice, at the touching edges of their guesses' boxes)
 AVOID_GAP_S = 2.0
@@ -77,13 +81,17 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     (:func:`_one_side_of_singularities`). ``meeting_time_box_s`` keeps every start within that many seconds of its
     own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each grasp of ``avoid`` at about its
     angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from
-    a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried.
-    ``collision_raise_m`` (the collision rows' order) raises those rows' lower bounds [m]
-    (:mod:`planner.phases.approach_clearance`: where the distance dipped between via points).
+    a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried. A cold solve with
+    the approach-energy cost (Eq. 16) first pins the base at its guess (:func:`_base_pinned_first`) and ends, failed,
+    when that solve does not converge. ``collision_raise_m`` (the collision rows' order) raises those rows' lower
+    bounds [m] (:mod:`planner.phases.approach_clearance`: where the distance dipped between via points).
     """
     t0 = time.perf_counter()
-    warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, max_starts, tracking_speed_scale,
-                                                        skip_guesses, deadline, max_iterations)
+    warm_start, pinned_failed, iterations = _base_pinned_first(problem, state, warm_start, tracking_speed_scale,
+                                                               skip_guesses, deadline, max_iterations)
+    if pinned_failed is not None:  # no optimum at the base-offset guess: free starts reach only the minima pins avoid
+        return replace(pinned_failed, iterations=iterations, solve_time_s=time.perf_counter() - t0)
+    result = None
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     n_warm = 0 if warm_start is None else 1
@@ -195,21 +203,22 @@ def approach_cost(problem: ApproachProblem, state: TargetState, start: ApproachP
 
 
 def _base_pinned_first(problem: ApproachProblem, state: TargetState,
-                       warm_start: ApproachParameters | ApproachSolution | None, max_starts: int,
+                       warm_start: ApproachParameters | ApproachSolution | None,
                        tracking_speed_scale: float | Array, skip_guesses: int, deadline: Deadline,
                        max_iterations: int | None,
                        ) -> tuple[ApproachParameters | ApproachSolution | None, ApproachSolution | None, int]:
-    """``(warm start, failed result, iterations)`` after the base-pinned solve a cold first solve with the
-    approach-energy cost makes first (no solve otherwise), each start within :data:`PINNED_START_ITERATIONS` and
-    all within ``max_iterations`` (the whole solve's, which the free starts then share).
+    """``(warm start, failed pinned solve, iterations)`` after the base-pinned solve a first solve with the
+    approach-energy cost makes first (no solve otherwise), from :data:`PINNED_STARTS` guesses each within
+    :data:`PINNED_START_ITERATIONS`, all within ``max_iterations`` (the whole solve's, which the free starts then
+    share); the failed pinned solve is given only for a cold solve, which then ends.
 
     Eq. 16 is smallest at the base-offset guess, but free-base starts lead IPOPT into local minima where the
     stopping room and the tracking rates hold the base away: solve with the base pinned first; if that
-    succeeds, the free solve starts at its optimum.
+    succeeds, the free solve starts at its optimum; if not, there is no such optimum to start from.
     """
     if not problem.scenario.costs.approach_energy > 0 or skip_guesses != 0:
         return warm_start, None, 0
-    pinned = _solve_base_pinned(problem, state, max_starts, tracking_speed_scale, deadline, max_iterations)
+    pinned = _solve_base_pinned(problem, state, tracking_speed_scale, deadline, max_iterations)
     if warm_start is not None:  # a neighbour's plan ended in a local minimum θ_b(0) ≈ 0.27-0.9 m; kept as a fallback
         return (pinned if pinned.success else warm_start), None, pinned.iterations
     return (pinned, None, pinned.iterations) if pinned.success else (None, pinned, pinned.iterations)
@@ -223,11 +232,11 @@ def _no_start(problem: ApproachProblem, status: SolveOutcome, base_offset_m: tup
                             np.inf, np.nan)
 
 
-def _solve_base_pinned(problem: ApproachProblem, state: TargetState, max_starts: int,
-                       tracking_speed_scale: float | Array, deadline: Deadline,
-                       max_iterations: int | None) -> ApproachSolution:
-    """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from guesses made for that base."""
-    return solve_approach_from_base(problem, state, problem.scenario.base_offset_guess_m, max_starts,
+def _solve_base_pinned(problem: ApproachProblem, state: TargetState, tracking_speed_scale: float | Array,
+                       deadline: Deadline, max_iterations: int | None) -> ApproachSolution:
+    """The NLP with θ_b(0) fixed at the scenario's base-offset guess, from the best :data:`PINNED_STARTS` guesses made
+    for that base."""
+    return solve_approach_from_base(problem, state, problem.scenario.base_offset_guess_m, PINNED_STARTS,
                                     tracking_speed_scale, deadline, max_iterations,
                                     start_iterations=PINNED_START_ITERATIONS)
 

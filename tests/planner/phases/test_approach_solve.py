@@ -178,11 +178,14 @@ def test_an_energy_solve_s_base_pinned_starts_share_its_iteration_budget():
     assert out.iterations <= budget + len(runs)
 
 
-@pytest.mark.parametrize(("budget", "caps"), [(None, [40, 40, 40]), (150, [40, 40, 40]), (60, [40, 20]), (30, [30])])
-def test_each_pinned_start_gets_at_most_its_cap_and_what_is_left(scenario_and_problem, budget, caps, monkeypatch):
+@pytest.mark.parametrize(("starts", "budget", "caps"), [(3, None, [40, 40, 40]), (3, 150, [40, 40, 40]),
+                                                        (3, 60, [40, 20]), (3, 30, [30]), (1, None, [40]),
+                                                        (1, 30, [30])])
+def test_each_pinned_start_gets_at_most_its_cap_and_what_is_left(scenario_and_problem, starts, budget, caps,
+                                                                  monkeypatch):
     """Every base-pinned start fails at its cap (a stand-in IPOPT run that spends all it is given): each gets
     min(PINNED_START_ITERATIONS, what the solve's budget leaves), no start follows a spent budget, and without a
-    budget (a table point's warm plan) each still gets the cap, not the scenario's max_iter."""
+    budget (a table point's warm plan) each still gets the cap, not the scenario's max_iter; PINNED_STARTS of them."""
     from dataclasses import replace
 
     import numpy as np
@@ -201,6 +204,43 @@ def test_each_pinned_start_gets_at_most_its_cap_and_what_is_left(scenario_and_pr
         return replace(failed, iterations=sc.solver.max_iter if max_iterations is None else max_iterations)
 
     monkeypatch.setattr(approach_solve_module, "_solve_once", spend_all)
-    out = _solve_base_pinned(problem, state, 3, 1.0, approach_solve_module.NO_DEADLINE, budget)
+    monkeypatch.setattr(approach_solve_module, "PINNED_STARTS", starts)
+    out = _solve_base_pinned(problem, state, 1.0, approach_solve_module.NO_DEADLINE, budget)
     assert armed == caps and out.iterations == sum(caps) and not out.success
     assert np.all(np.asarray(armed) <= approach_solve_module.PINNED_START_ITERATIONS)
+
+
+def test_a_cold_energy_solve_whose_pinned_start_fails_ends_there_and_a_warm_one_goes_on(scenario_and_problem,
+                                                                                      monkeypatch):
+    """Eq. 16's optimum is sought with the base pinned at its guess first; where no pinned start converges, a cold solve
+    ends failed (no free start: those reach only the local minima the pin avoids), with the pinned solve's status and
+    iterations; a warm solve (a table point's neighbour) goes on from its warm start. Stand-in IPOPT runs that fail
+    pinned and succeed free, the base's bounds telling them apart."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    import planner.phases.approach_solve as approach_solve_module
+    from planner.nlp.outcome import SolveOutcome
+
+    sc, problem = scenario_and_problem
+    sc = replace(sc, costs=replace(sc.costs, approach_energy=1.0))
+    monkeypatch.setattr(problem, "scenario", sc)  # only the solve's choice of starts reads the weights
+    base = problem.decision.slice("base_offset_m")
+    runs = []
+    failed = approach_solve_module._no_start(problem, SolveOutcome.ITERATION_BUDGET_EXHAUSTED, (0.0, 0.0), 0.0)
+
+    def stand_in(prob, st, w0, scale, lbw, ubw, max_iterations=None, **kwargs):
+        pinned = bool(np.all(lbw[base] == ubw[base]))
+        runs.append(pinned)
+        return replace(failed, iterations=7) if pinned else replace(failed, success=True, status="stand-in ok",
+                                                                    iterations=3)
+
+    monkeypatch.setattr(approach_solve_module, "_solve_once", stand_in)
+    n = approach_solve_module.PINNED_STARTS
+    cold = solve_approach(problem, sc.target_state.as_state(), max_iterations=150)
+    assert runs == [True] * n and not cold.success and cold.iterations == 7 * n
+    assert cold.status == SolveOutcome.ITERATION_BUDGET_EXHAUSTED
+    runs.clear()
+    warm = solve_approach(problem, sc.target_state.as_state(), warm_start=failed, max_iterations=150)
+    assert runs == [True] * n + [False] and warm.success and warm.iterations == 7 * n + 3
