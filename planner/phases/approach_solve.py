@@ -36,9 +36,9 @@ COLD_START_ITERATIONS = 150
 # IPOPT iterations a base-pinned start of an Eq. 16 solve gets: where the optimum at the base-offset guess exists it
 # converged in 11-15 (scenario I flat spins); where it does not (scenario II) it ran 100-400 and failed, 17-52 s a plan
 PINNED_START_ITERATIONS = 40
-# a cold Eq. 16 solve pins the base from this many guesses, and ends when none converges: at 38 scenario I flat spins
-# traced the first converged at 37, the second at the 38th; none at any scenario II state, where the free starts then
-# found an optimum whose braking was screened out (README, "The measurements behind the planner's constants")
+# a cold Eq. 16 solve pins the base from this many guesses, and ends when none converges: at 36 scenario I flat spins
+# traced the first converged at 35, the second at the 36th; none at any scenario II state traced, where free starts
+# then found an optimum whose braking was screened out (README, "The measurements behind the planner's constants")
 PINNED_STARTS = 2
 # a retry's meeting time keeps at least this far [s] from those of the grasps already tried (a grasp 1 s away is the
 # same grasp: scenario II's retries met at 37.8 s twice, at the touching edges of their guesses' boxes)
