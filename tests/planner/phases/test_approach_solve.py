@@ -244,3 +244,20 @@ def test_a_cold_energy_solve_whose_pinned_start_fails_ends_there_and_a_warm_one_
     runs.clear()
     warm = solve_approach(problem, sc.target_state.as_state(), warm_start=failed, max_iterations=150)
     assert runs == [True] * n + [False] and warm.success and warm.iterations == 7 * n + 3
+
+
+@pytest.mark.parametrize(("reached", "status"), [(False, "NO_PINNED_START"), (True, "NO_GUESS_IN_TIME")])
+def test_a_cold_energy_solve_with_no_pinned_start_ends_with_why(scenario_and_problem, monkeypatch, reached, status):
+    """The degenerate pinned solve: no meeting time reachable from the base-offset guess (or none still in time for a
+    live plan) is no optimum near the guess either; the cold solve ends with that status and makes no IPOPT run."""
+    from dataclasses import replace
+
+    import planner.phases.approach_solve as approach_solve_module
+    from planner.nlp.outcome import SolveOutcome
+
+    sc, problem = scenario_and_problem
+    monkeypatch.setattr(problem, "scenario", replace(sc, costs=replace(sc.costs, approach_energy=1.0)))
+    monkeypatch.setattr(approach_solve_module, "_guesses_in_time", lambda *args: ([], reached))
+    monkeypatch.setattr(approach_solve_module, "_solve_once", lambda *a, **k: pytest.fail("no IPOPT run expected"))
+    out = solve_approach(problem, sc.target_state.as_state(), max_iterations=150)
+    assert not out.success and out.iterations == 0 and out.status == SolveOutcome[status]
