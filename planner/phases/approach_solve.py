@@ -34,7 +34,8 @@ SINGULARITY_CLEARANCE_RAD = 0.2
 # plans took 5-78 (two scenario I flat spins 246 and 315); failing ones ran 400-900 and spent the plan's budget
 COLD_START_ITERATIONS = 150
 # IPOPT iterations a base-pinned start of an Eq. 16 solve gets: where the optimum at the base-offset guess exists it
-# converged in 8-16 (36 scenario I flat spins); where it does not (scenario II) it ran 100-400 and failed, 17-52 s a plan
+# converged in 8-16 (36 scenario I flat spins); where it does not (scenario II) it ran 100-400 and failed, 17-52 s a
+# plan
 PINNED_START_ITERATIONS = 40
 # a cold Eq. 16 solve pins the base from this many guesses, and ends when none converges: at 36 scenario I flat spins
 # traced the first converged at 35, the second at the 36th; none at any scenario II state traced, where free starts
