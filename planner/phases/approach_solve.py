@@ -34,8 +34,7 @@ SINGULARITY_CLEARANCE_RAD = 0.2
 # plans took 5-78 (two scenario I flat spins 246 and 315); failing ones ran 400-900 and spent the plan's budget
 COLD_START_ITERATIONS = 150
 # IPOPT iterations a base-pinned start of an Eq. 16 solve gets: where the optimum at the base-offset guess exists it
-# converged in 8-16 (36 scenario I flat spins); where it does not (scenario II) it ran 100-400 and failed, 17-52 s a
-# plan
+# converged in 8-16 (36 scenario I flat spins); where not (scenario II) it ran 100-400 and failed, 17-52 s a plan
 PINNED_START_ITERATIONS = 40
 # a cold Eq. 16 solve pins the base from this many guesses, and ends when none converges: at 36 scenario I flat spins
 # traced the first converged at 35, the second at the 36th; none at any scenario II state traced, where free starts
@@ -82,22 +81,19 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     (:func:`_one_side_of_singularities`). ``meeting_time_box_s`` keeps every start within that many seconds of its
     own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each grasp of ``avoid`` at about its
     angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from
-    a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried. A cold solve with
-    the approach-energy cost (Eq. 16) first pins the base at its guess (:func:`_base_pinned_first`) and ends, failed,
-    when that solve does not converge. ``collision_raise_m`` (the collision rows' order) raises those rows' lower
-    bounds [m] (:mod:`planner.phases.approach_clearance`: where the distance dipped between via points).
+    a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried. A cold Eq. 16
+    solve ends, failed, when its base-pinned solve does (:func:`_base_pinned_first`). ``collision_raise_m`` (the
+    collision rows' order) raises those rows' lower bounds [m] (:mod:`planner.phases.approach_clearance`).
     """
     t0 = time.perf_counter()
-    warm_start, pinned_failed, iterations = _base_pinned_first(problem, state, warm_start, tracking_speed_scale,
-                                                               skip_guesses, deadline, max_iterations)
-    if pinned_failed is not None:  # no optimum at the base-offset guess: free starts reach only the minima pins avoid
-        return replace(pinned_failed, iterations=iterations, solve_time_s=time.perf_counter() - t0)
-    result = None
+    warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, tracking_speed_scale,
+                                                        skip_guesses, deadline, max_iterations)
+    if result is not None:  # no optimum at the base-offset guess: free starts reach only the minima the pin avoids
+        return replace(result, iterations=iterations, solve_time_s=time.perf_counter() - t0)
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
-    n_warm = 0 if warm_start is None else 1
     for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses, deadline),
-                                                        max_starts + n_warm)):
+                                                        max_starts + (warm_start is not None))):
         if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
         left = None if max_iterations is None else max_iterations - iterations
@@ -108,9 +104,8 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         lbw, ubw = _meeting_time_box(problem, w0, meeting_time_box_s, _avoided_s(avoid, angle))
         if lbw is None:
             continue
-        result = _solve_once(problem, state, w0, tracking_speed_scale, lbw, ubw, cold=cold,
-                             max_iterations=limit, deadline=deadline,
-                             collision_raise_m=collision_raise_m)
+        result = _solve_once(problem, state, w0, tracking_speed_scale, lbw, ubw, cold=cold, max_iterations=limit,
+                             deadline=deadline, collision_raise_m=collision_raise_m)
         if cold:
             result = replace(result, start_guess=guess)
         iterations += result.iterations
