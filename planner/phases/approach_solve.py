@@ -93,7 +93,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     if scan is None or not scan.serves(state, max_starts):
         scan = ScanOnDemand(problem.scenario, problem.spline, state, max_starts)
     for attempt, (w0, guess, angle) in enumerate(islice(_starts(warm_start, scan, skip_guesses, deadline),
-                                                        max_starts + (warm_start is not None))):
+                                                        max_starts + int(warm_start is not None))):
         if attempt > 0 and (time.perf_counter() - t0 > problem.scenario.solver.max_wall_s or deadline.passed):
             break
         left = None if max_iterations is None else max_iterations - iterations

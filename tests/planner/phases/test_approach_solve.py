@@ -180,15 +180,14 @@ def test_an_energy_solve_s_base_pinned_starts_share_its_iteration_budget():
 
 @pytest.mark.parametrize(("starts", "budget", "caps"), [(3, None, [40, 40, 40]), (3, 150, [40, 40, 40]),
                                                         (3, 60, [40, 20]), (3, 30, [30]), (1, None, [40]),
-                                                        (1, 30, [30])])
+                                                        (1, 30, [30]), (2, None, [40, 40]), (2, 150, [40, 40]),
+                                                        (2, 40, [40])])
 def test_each_pinned_start_gets_at_most_its_cap_and_what_is_left(scenario_and_problem, starts, budget, caps,
                                                                   monkeypatch):
     """Every base-pinned start fails at its cap (a stand-in IPOPT run that spends all it is given): each gets
     min(PINNED_START_ITERATIONS, what the solve's budget leaves), no start follows a spent budget, and without a
     budget (a table point's warm plan) each still gets the cap, not the scenario's max_iter; PINNED_STARTS of them."""
     from dataclasses import replace
-
-    import numpy as np
 
     import planner.phases.approach_solve as approach_solve_module
     from planner.nlp.outcome import SolveOutcome
@@ -207,7 +206,6 @@ def test_each_pinned_start_gets_at_most_its_cap_and_what_is_left(scenario_and_pr
     monkeypatch.setattr(approach_solve_module, "PINNED_STARTS", starts)
     out = _solve_base_pinned(problem, state, 1.0, approach_solve_module.NO_DEADLINE, budget)
     assert armed == caps and out.iterations == sum(caps) and not out.success
-    assert np.all(np.asarray(armed) <= approach_solve_module.PINNED_START_ITERATIONS)
 
 
 def test_a_cold_energy_solve_whose_pinned_start_fails_ends_there_and_a_warm_one_goes_on(scenario_and_problem,
