@@ -8,9 +8,9 @@ feasibility plan is needed); else the feasibility plan finds a stabilized grasp.
 step by step from the grasp kept: each step re-solves the costed approach warm from the current grasp with the
 meeting time kept and θ_b(0) inside a box of radius r around the current one, tracks, and re-solves the
 stabilization warm from the current spline; the step is kept only if that stabilization succeeds. The full step
-(r = ∞) is tried first; then r starts at :data:`FIRST_RADIUS_M`, doubles after a kept step and halves after a
-refused one. The plan is feasible as soon as its first grasp is braked, and its cost only falls while steps are kept
-and time remains."""
+(r = ∞) is tried first, except under a grasp-wrench limit; then r starts at :data:`FIRST_RADIUS_M`, doubles after a
+kept step and halves after a refused one. The plan is feasible as soon as its first grasp is braked, and its cost
+only falls while steps are kept and time remains."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ from planner.plan_parameters import PlanParameters
 
 FIRST_RADIUS_M = 0.02  # scenario II's default grasp: a 0.02 m box kept the braking feasible, 0.05 m did not
 MIN_RADIUS_M = 0.005  # below this a step moves the base by less than the NLPs' constraint back-off
-MAX_STEPS = 8  # trust-region steps after the full one: each is an approach and a stabilization solve
+MAX_STEPS = 8  # trust-region steps after the full one (if tried): each is an approach and a stabilization solve
 STEP_APPROACH_ITERATIONS = 100  # the full step with the meeting time kept took 52 (scenario II)
 STEP_STABILIZATION_ITERATIONS = 30  # steps that kept the braking feasible re-solved it in 8-14
 # a step's braking whose violation has not halved over its last 5 iterations after 15 is given up: of 45 such solves
@@ -165,15 +165,17 @@ def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParamet
 
 def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent,
              tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> None:
-    """Trust-region steps from the current grasp: the full step first, then from :data:`FIRST_RADIUS_M`, doubled
-    after a kept step and halved after a refused one; stops after :data:`MAX_STEPS`, below :data:`MIN_RADIUS_M`,
+    """Trust-region steps from the current grasp: the full step first (not under a grasp-wrench limit:
+    :func:`_full_step_first`), then from :data:`FIRST_RADIUS_M`, doubled after a kept step and halved after a refused
+    one; stops after :data:`MAX_STEPS` and the full step, below :data:`MIN_RADIUS_M`,
     when a step gains nothing, or at ``deadline`` (for a live plan, no step starts later than
     :data:`~planner.deadline.START_LEAD_S` before its approach's start, which every step keeps: the step's approach
     solve ends then, its braking :data:`~planner.deadline.ANSWER_LEAD_S` before the start)."""
     in_time = deadline.in_time_for(out.candidate.app.start_delay_s)
     steps_by = deadline.in_time_for(out.candidate.app.start_delay_s, lead_s=START_LEAD_S)
-    radius = np.inf
-    for _ in range(MAX_STEPS + 1):
+    full_step = _full_step_first(planner)
+    radius = np.inf if full_step else FIRST_RADIUS_M
+    for _ in range(MAX_STEPS + full_step):
         if steps_by.passed or radius < MIN_RADIUS_M or _at_its_floor(planner, out.cost_end):
             break
         kept = _step(planner, state, motion, out, radius, tracking_speed_scale, in_time)
@@ -187,6 +189,15 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
         out.notes.append(f"costed plan: the descent stopped {START_LEAD_S:g} s before the approach's start at "
                          f"{out.candidate.app.start_delay_s:.1f} s after the observation, so that the plan answers "
                          "before it")
+
+
+def _full_step_first(planner: PhasePlanner) -> bool:
+    """True unless the scenario limits the grasp wrench. Under such a limit the grasps that can be braked are a few
+    centimetres of θ_b(0) wide (README "Optimal tables"), and the full step, the meeting time's own optimum decimetres
+    away, was refused at every scenario II state traced (its approach and braking solved for nothing, ~6 s); without
+    one (scenario I) it is the step that reaches that optimum in one go."""
+    limits = planner.scenario.limits
+    return not (np.isfinite(limits.grasp_torque_max_nm) or np.isfinite(limits.grasp_force_max_n))
 
 
 def _at_its_floor(planner: PhasePlanner, cost: float) -> bool:

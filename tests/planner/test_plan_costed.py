@@ -44,17 +44,24 @@ class _Stand:
             self.stalls.append(stall)
             return stab
 
-        return SimpleNamespace(app=app, tracking=SimpleNamespace(peak_rate_demand=1.0), approach_samples=None,
+        return SimpleNamespace(app=app, tracking=SimpleNamespace(peak_rate_demand=1.0), approach_samples=_SAMPLES,
                                stabilize=stabilize)
 
 
-def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE) -> costed.CostDescent:
+QD_MAX = np.full(7, np.radians(20.0))  # the default chaser's joint-rate limits [rad/s]
+_SAMPLES = SimpleNamespace(qd=np.zeros((3, 7)))  # an approach at rest: within every rate limit
+ROBOT = SimpleNamespace(qd_max=QD_MAX)
+UNLIMITED = SimpleNamespace(grasp_force_max_n=np.inf, grasp_torque_max_nm=np.inf)  # scenario I's grasp wrench
+
+
+def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE,
+             limits: SimpleNamespace = UNLIMITED) -> costed.CostDescent:
     monkeypatch.setattr(costed, "solve_approach_near", stand.solve)
+    costs = SimpleNamespace(approach_energy=1.0, manipulability=0.0, min_distance=0.0)
     planner = SimpleNamespace(approach=stand.approach, approach_and_tracking=lambda app, motion: (None, None),
                               candidate_from=lambda app, samples, tr, motion: stand.candidate(app),
                               approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None, [])),
-                              scenario=SimpleNamespace(costs=SimpleNamespace(approach_energy=1.0, manipulability=0.0,
-                                                                             min_distance=0.0)))
+                              scenario=SimpleNamespace(costs=costs, limits=limits, robot=ROBOT))
     start = stand.candidate(SimpleNamespace(base_offset_m=stand.theta0.copy(), start_delay_s=START_S))
     cost = approach_energy(stand.theta0)
     out = costed.CostDescent(start, SimpleNamespace(params=np.ones(3)), {"approach_s": 0.0, "stabilization_s": 0.0},
@@ -85,6 +92,25 @@ def test_thin_stabilizable_set_keeps_only_steps_inside_it(monkeypatch):
     assert stand.stalls and all(rule is costed.STEP_STALL for rule in stand.stalls)  # a refused braking ends early
     assert min(r for r in stand.radii) >= costed.MIN_RADIUS_M
     assert len(stand.radii) <= costed.MAX_STEPS + 1
+
+
+@pytest.mark.parametrize("limits", [SimpleNamespace(grasp_force_max_n=np.inf, grasp_torque_max_nm=10.0),
+                                    SimpleNamespace(grasp_force_max_n=50.0, grasp_torque_max_nm=np.inf)])
+def test_under_a_grasp_wrench_limit_no_full_step_is_tried(monkeypatch, limits):
+    """Under a wrench limit (scenario II's ±10 N·m, or a force limit) the descent starts at the first radius: on the
+    thin stabilizable set it tries exactly the steps the unlimited schedule tries after its refused full step and ends
+    at the same grasp; where the full step would have been kept, the cost still falls, by bounded, doubling steps."""
+    theta0 = np.array([-0.9, 0.9])
+    full, limited = _Stand(theta0, stable_m=0.03), _Stand(theta0, stable_m=0.03)
+    d_full = _descend(monkeypatch, full)
+    d_limited = _descend(monkeypatch, limited, limits=limits)
+    assert full.radii[0] == np.inf and limited.radii == full.radii[1:]
+    assert np.array_equal(d_limited.candidate.app.base_offset_m, d_full.candidate.app.base_offset_m)
+    assert (d_limited.steps_kept, d_limited.steps_refused) == (d_full.steps_kept, d_full.steps_refused - 1)
+    wide = _Stand(theta0, stable_m=10.0)
+    d = _descend(monkeypatch, wide, limits=limits)
+    assert wide.radii[:3] == [costed.FIRST_RADIUS_M, 2 * costed.FIRST_RADIUS_M, 4 * costed.FIRST_RADIUS_M]
+    assert np.all(np.isfinite(wide.radii)) and len(wide.radii) <= costed.MAX_STEPS and d.cost_end < d.cost_start
 
 
 def test_nothing_stabilizes_keeps_the_feasible_grasp(monkeypatch):
@@ -135,7 +161,7 @@ class _Direct:
         stab = SimpleNamespace(success=braked, params=np.zeros(3), solve_time_s=2.0)
         self.app = SimpleNamespace(success=True, cost=cost, solve_time_s=3.0, base_offset_m=np.zeros(2))
         self.candidate = SimpleNamespace(app=self.app, tracking=SimpleNamespace(peak_rate_demand=1.0),
-                                         approach_samples=None, stabilize=lambda *args: stab)
+                                         approach_samples=_SAMPLES, stabilize=lambda *args: stab)
         feasible_app = SimpleNamespace(success=True, base_offset_m=np.array([0.5, 0.5]))
         feasible = SimpleNamespace(app=feasible_app, stabilization=None)
         outer = self
@@ -158,7 +184,8 @@ class _Direct:
         monkeypatch.setattr(costed, "_descend", lambda *args: self.descents.append(args[-1]))
         self.planner = SimpleNamespace(approach="costed NLP", approach_and_tracking=lambda app, motion: (None, None),
                                        candidate_from=lambda app, samples, tr, motion: self.candidate,
-                                       approach_clearance=SimpleNamespace(raised_bounds=lambda *args: (None, [])))
+                                       approach_clearance=SimpleNamespace(raised_bounds=lambda *args: (None, [])),
+                                       scenario=SimpleNamespace(robot=ROBOT))
 
     def solve(self, problem, state, warm, scan, max_iterations, deadline):
         self.approach_calls.append((problem, max_iterations, deadline))
