@@ -234,9 +234,12 @@ def _step(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: 
 
 def _trackable(planner: PhasePlanner, candidate: GraspCandidate, motion: TargetMotion) -> bool:
     """True when ``candidate``'s tracking asks for no more than the tolerated joint rates and its approach keeps its
-    clearance between the via points (a costed step is refused otherwise, not repaired: the feasibility plan's grasp
-    stays the answer)."""
+    joint-rate limits and its clearance between the via points (a costed step is refused otherwise, not repaired: the
+    feasibility plan's grasp stays the answer). A cost drives the approach's rates onto their via-point bounds, and
+    between via points its spline's rates peak above them."""
     if candidate.tracking.peak_rate_demand > RATE_DEMAND_TOLERATED:
+        return False
+    if np.any(np.abs(candidate.approach_samples.qd) > planner.scenario.robot.qd_max):
         return False
     _, dips = planner.approach_clearance.raised_bounds(candidate.app, candidate.approach_samples, motion)
     return not dips

@@ -197,7 +197,8 @@ class ApproachProblem:
         return R_ee, p_ee, R_free, tr_poses
 
     def _add_joint_limits(self, chaser: ChaserPath, target: TargetPath, Q_tr: list[ca.MX], via_idx: list[int]) -> None:
-        """Joint boxes at the via points, tracking nodes and stopping point (Eq. 17, 8), rates (Eq. 18).
+        """Joint boxes at the via points, tracking nodes and stopping point (Eq. 17, 8), rates (Eq. 18) at the via
+        points, or with Eq. 14-15 weighted at every RK4 node (:meth:`_rate_nodes`).
 
         Stopping room for the stabilization: decelerating from the grasp rates over STOPPING_FRACTION·t_f³
         moves a joint by q̇·STOPPING_FRACTION·t_f³/2, which must stay inside the limits. The rates are the
@@ -210,7 +211,8 @@ class ApproachProblem:
                                             target.omega_grasp, self.scenario.target.grasp.T_body_grasp)
         q_stop = Q_tr[-1] + qd_grasp * (STOPPING_FRACTION * self.scenario.phases.stabilization_s / 2)
         q_box = ca.vertcat(*[chaser.Qn[i, :].T for i in via_idx], *Q_tr, q_stop)
-        qd_box = ca.vertcat(*[chaser.Qdn[i, :].T for i in via_idx])
+        rate_idx = self._rate_nodes(via_idx)
+        qd_box = ca.vertcat(*[chaser.Qdn[i, :].T for i in rate_idx])
         q_steps = [chaser.q_end, *Q_tr]
         qd_steps = ca.vertcat(*[(q_steps[j + 1] - q_steps[j]) / (t_tr[j] - (t_tr[j - 1] if j else 0.0))
                                 for j in range(len(TRACKING_NODES))])
@@ -220,10 +222,19 @@ class ApproachProblem:
         g = self.constraints
         g.add_expression("joint_positions", q_box, np.tile(rob.q_min + backoff.JOINT_POSITION_RAD, n_q_box),
                          np.tile(rob.q_max - backoff.JOINT_POSITION_RAD, n_q_box))
-        g.add_expression("joint_velocities", qd_box, np.tile(-qd_lim, self.k), np.tile(qd_lim, self.k))
+        g.add_expression("joint_velocities", qd_box, np.tile(-qd_lim, len(rate_idx)), np.tile(qd_lim, len(rate_idx)))
         g.add_expression("tracking_rates", qd_steps,
                          np.concatenate([-f * rob.qd_max for f in TRACKING_SPEED_MARGIN]), step_lim)
         g.add_expression("grasp_rates", qd_grasp, -GRASP_RATE_FRACTION * rob.qd_max, GRASP_RATE_FRACTION * rob.qd_max)
+
+    def _rate_nodes(self, via_idx: list[int]) -> list[int]:
+        """The RK4 nodes whose joint rates are bounded: the via points, or, when the cost weighs the arm's motion (Eq.
+        14-15), every node between the approach's ends (whose rates are 0). Those terms drive the rates onto their
+        bounds, and the spline's rates then peak between via points (scenario II's safety descent: 1.029× a limit
+        between two 0.5 s apart); Eq. 16 weighs θ_b(0) alone and leaves the rates inside (a scenario II energy plan's
+        at 0.88 of the limits at most). The rows are linear in the spline's parameters, so cheap."""
+        c = self.scenario.costs
+        return list(range(1, self.m_steps)) if c.manipulability > 0 or c.min_distance > 0 else via_idx
 
     def _add_collision(self, all_poses: list[ca.MX]) -> None:
         """Signed distance of every pair at the via points and tracking nodes ≥ its clearance (Eq. 19)."""

@@ -343,11 +343,22 @@ def test_the_feasibility_stage_shares_all_but_the_approach_nlp():
     assert stage.scenario.costs.without_approach_terms() == stage.scenario.costs
 
 
-@pytest.mark.parametrize(("rate", "dips", "kept"), [(1.0, [], True), (1.3, [], False), (1.0, ["a dip"], False)])
-def test_a_costed_grasp_must_track_within_rates_and_clear_between_via_points(rate, dips, kept):
+@pytest.mark.parametrize(("rate", "approach_rate", "dips", "kept"), [
+    (1.0, 0.97, [], True),  # on the via points' bound
+    (1.0, 1.0, [], True),  # at the limit itself
+    (1.3, 0.5, [], False),  # the tracking asks too much
+    (1.0, 1.0 + 1e-9, [], False),  # the approach's spline past a rate limit between its via points
+    (1.0, -1.03, [], False),  # the same in the negative direction (scenario II's safety descent: 1.03× the limit)
+    (1.0, 0.5, ["a dip"], False),  # a dip below the clearance between via points
+])
+def test_a_costed_grasp_must_track_and_keep_its_limits_between_via_points(rate, approach_rate, dips, kept):
     planner = SimpleNamespace(approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None,
-                                                                                                            dips)))
-    candidate = SimpleNamespace(app=None, approach_samples=None, tracking=SimpleNamespace(peak_rate_demand=rate))
+                                                                                                            dips)),
+                              scenario=SimpleNamespace(robot=ROBOT))
+    qd = np.zeros((5, 7))
+    qd[2, 6] = approach_rate * QD_MAX[6]  # joint 7, mid-approach
+    candidate = SimpleNamespace(app=None, approach_samples=SimpleNamespace(qd=qd),
+                                tracking=SimpleNamespace(peak_rate_demand=rate))
     assert costed._trackable(planner, candidate, None) is kept
 
 
