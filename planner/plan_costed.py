@@ -4,7 +4,8 @@ first, then its approach cost lowered in trust-region steps that each keep the w
 The approach NLP with a cost, solved on its own, optimises the approach alone: in scenario II its optimum is a grasp
 from which no braking within ±10 N·m exists, and the stabilization NLP can only fail there. So a costed plan first
 solves the costed approach as it stands and keeps that grasp if it can be tracked and braked (scenario I: no
-feasibility plan is needed); else the feasibility plan finds a stabilized grasp. Then it lowers the approach cost
+feasibility plan is needed); under a grasp-wrench limit it does not try (scenario II), and else the feasibility plan
+finds a stabilized grasp. Then it lowers the approach cost
 step by step from the grasp kept: each step re-solves the costed approach warm from the current grasp with the
 meeting time kept and θ_b(0) inside a box of radius r around the current one, tracks, and re-solves the
 stabilization warm from the current spline; the step is kept only if that stabilization succeeds. The full step
@@ -100,21 +101,26 @@ def plan_costed(planner: PhasePlanner, feasibility: Callable[[], PhasePlanner], 
                 warm: PlanParameters | None, scan: ScanOnDemand, motion: TargetMotion,
                 deadline: Deadline, grasp_by: Deadline | None = None) -> CostDescent:
     """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): the costed approach's own
-    optimum, kept if it can be braked; else the planner ``feasibility()`` gives (the same scenario without approach
+    optimum (not under a grasp-wrench limit: :func:`_wrench_limited`), kept if it can be braked; else the planner
+    ``feasibility()`` gives (the same scenario without approach
     costs, called only then) finds a stabilized grasp, warm from ``warm`` when given; both by ``grasp_by`` (default
     ``deadline``); then the descent from the grasp kept, until ``deadline``."""
     grasp_by = deadline if grasp_by is None else grasp_by
     timings_s = {"approach_s": 0.0, "stabilization_s": 0.0}
-    out = _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(grasp_by), timings_s)
+    limited = _wrench_limited(planner)
+    out = None if limited else _direct_attempt(planner, state, warm, scan, motion, _direct_deadline(grasp_by),
+                                               timings_s)
     scale = untightened_speed_scale()
     if out is None:
         search = GraspSearch(feasibility(), state, warm, scan, motion, grasp_by, FEASIBILITY_RESOLVE_ITERATIONS)
         candidate, stab = search.run()
         found = search.timings_s()
+        why = ("is not tried under the grasp-wrench limit (it lies outside the grasps that can be braked)" if limited
+               else "could not be braked (or none converged with the base pinned at its guess, or it was not solved "
+                    "in its share of the budget)")
         out = CostDescent(candidate, stab, {k: timings_s[k] + found[k] for k in timings_s},
-                          ["costed plan: the costed approach's own optimum could not be braked (or none converged "
-                           "with the base pinned at its guess, or it was not solved in its share of the budget): the "
-                           "feasibility plan's grasp first", *search.notes])
+                          [f"costed plan: the costed approach's own optimum {why}: the feasibility plan's grasp first",
+                           *search.notes])
         if not out.stabilized:
             return out
         out.cost_start = out.cost_end = approach_cost(planner.approach, state, candidate.app)
@@ -166,14 +172,14 @@ def _direct_attempt(planner: PhasePlanner, state: TargetState, warm: PlanParamet
 def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: CostDescent,
              tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> None:
     """Trust-region steps from the current grasp: the full step first (not under a grasp-wrench limit:
-    :func:`_full_step_first`), then from :data:`FIRST_RADIUS_M`, doubled after a kept step and halved after a refused
+    :func:`_wrench_limited`), then from :data:`FIRST_RADIUS_M`, doubled after a kept step and halved after a refused
     one; stops after :data:`MAX_STEPS` and the full step, below :data:`MIN_RADIUS_M`,
     when a step gains nothing, or at ``deadline`` (for a live plan, no step starts later than
     :data:`~planner.deadline.START_LEAD_S` before its approach's start, which every step keeps: the step's approach
     solve ends then, its braking :data:`~planner.deadline.ANSWER_LEAD_S` before the start)."""
     in_time = deadline.in_time_for(out.candidate.app.start_delay_s)
     steps_by = deadline.in_time_for(out.candidate.app.start_delay_s, lead_s=START_LEAD_S)
-    full_step = _full_step_first(planner)
+    full_step = not _wrench_limited(planner)
     radius = np.inf if full_step else FIRST_RADIUS_M
     for _ in range(MAX_STEPS + full_step):
         if steps_by.passed or radius < MIN_RADIUS_M or _at_its_floor(planner, out.cost_end):
@@ -191,13 +197,15 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
                          "before it")
 
 
-def _full_step_first(planner: PhasePlanner) -> bool:
-    """True unless the scenario limits the grasp wrench. Under such a limit the grasps that can be braked are a few
-    centimetres of θ_b(0) wide (README "Optimal tables"), and the full step, the meeting time's own optimum decimetres
-    away, was refused at every scenario II state traced (its approach and braking solved for nothing, ~6 s); without
-    one (scenario I) it is the step that reaches that optimum in one go."""
+def _wrench_limited(planner: PhasePlanner) -> bool:
+    """True when the scenario limits the grasp wrench. Then the grasps that can be braked are a few centimetres of
+    θ_b(0) wide (README "Optimal tables"), and the costed approach's own optimum, over every meeting time or at the
+    descent's (its full step), lies decimetres away: in scenario II none was kept (the energy variant's base-pinned
+    starts converged at none of the states traced, the safety variant's optimum was not kept at its default state, the
+    full step was refused at 15 of 15), each attempt a solve for nothing (4-20 s); without a limit (scenario I) they
+    are how the optimum is reached in one go."""
     limits = planner.scenario.limits
-    return not (np.isfinite(limits.grasp_torque_max_nm) or np.isfinite(limits.grasp_force_max_n))
+    return bool(np.isfinite(limits.grasp_torque_max_nm) or np.isfinite(limits.grasp_force_max_n))
 
 
 def _at_its_floor(planner: PhasePlanner, cost: float) -> bool:

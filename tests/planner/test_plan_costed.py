@@ -156,7 +156,7 @@ class _Direct:
     """The stand-ins of a costed plan's stages: the costed approach's own optimum at ``cost``, braked or not, and a
     feasibility GraspSearch that records how it was made and returns a grasp at cost 0.5."""
 
-    def __init__(self, monkeypatch, braked: bool, cost: float = 1e-9) -> None:
+    def __init__(self, monkeypatch, braked: bool, cost: float = 1e-9, limits: SimpleNamespace = UNLIMITED) -> None:
         self.approach_calls, self.searches, self.feasibility_built = [], [], False
         stab = SimpleNamespace(success=braked, params=np.zeros(3), solve_time_s=2.0)
         self.app = SimpleNamespace(success=True, cost=cost, solve_time_s=3.0, base_offset_m=np.zeros(2))
@@ -185,7 +185,7 @@ class _Direct:
         self.planner = SimpleNamespace(approach="costed NLP", approach_and_tracking=lambda app, motion: (None, None),
                                        candidate_from=lambda app, samples, tr, motion: self.candidate,
                                        approach_clearance=SimpleNamespace(raised_bounds=lambda *args: (None, [])),
-                                       scenario=SimpleNamespace(robot=ROBOT))
+                                       scenario=SimpleNamespace(robot=ROBOT, limits=limits))
 
     def solve(self, problem, state, warm, scan, max_iterations, deadline):
         self.approach_calls.append((problem, max_iterations, deadline))
@@ -223,6 +223,19 @@ def test_an_unbraked_costed_optimum_falls_back_to_the_feasibility_plan(monkeypat
     assert out.cost_start == out.cost_end == pytest.approx(0.5)
     assert out.timings_s == {"approach_s": 13.0, "stabilization_s": 22.0}
     assert "feasibility note" in out.notes and "at the feasibility plan's grasp" in out.notes[-1]
+
+
+def test_under_a_grasp_wrench_limit_the_costed_optimum_is_not_tried(monkeypatch):
+    """Scenario II's ±10 N·m: the costed approach's own optimum lies outside the grasps that can be braked, so no
+    costed solve is made, even where it would have been braked; the feasibility plan's grasp comes first, with all of
+    the time, and the note says why."""
+    for braked in (False, True):
+        d = _Direct(monkeypatch, braked=braked, limits=SimpleNamespace(grasp_force_max_n=np.inf,
+                                                                        grasp_torque_max_nm=10.0))
+        out = d.plan(Deadline.after(100.0))
+        assert d.approach_calls == [] and len(d.searches) == 1 and d.feasibility_built
+        assert out.cost_start == pytest.approx(0.5) and out.timings_s == {"approach_s": 10.0, "stabilization_s": 20.0}
+        assert "is not tried under the grasp-wrench limit" in out.notes[0]
 
 
 def test_the_costed_optimum_gets_half_of_a_bounded_budget(monkeypatch):
