@@ -5,10 +5,10 @@ The approach NLP with a cost, solved on its own, optimises the approach alone: i
 from which no braking within ±10 N·m exists, and the stabilization NLP can only fail there. So a costed plan first
 solves the costed approach as it stands and keeps that grasp if it can be tracked and braked (scenario I: no
 feasibility plan is needed); under a grasp-wrench limit it does not try (scenario II), and else the feasibility plan
-finds a stabilized grasp. Then it lowers the approach cost
-step by step from the grasp kept: each step re-solves the costed approach warm from the current grasp with the
-meeting time kept and θ_b(0) inside a box of radius r around the current one, tracks, and re-solves the
-stabilization warm from the current spline; the step is kept only if that stabilization succeeds. The full step
+finds a stabilized grasp. Then it lowers the approach cost step by step from the grasp kept: each step re-solves the
+costed approach warm from the current grasp with the meeting time kept and θ_b(0) inside a box of radius r around the
+current one, tracks, and re-solves the stabilization warm from the current spline; the step is kept only if that
+stabilization succeeds. The full step
 (r = ∞) is tried first, except under a grasp-wrench limit; then r starts at :data:`FIRST_RADIUS_M`, doubles after a
 kept step and halves after a refused one. The plan is feasible as soon as its first grasp is braked, and its cost
 only falls while steps are kept and time remains."""
@@ -102,9 +102,9 @@ def plan_costed(planner: PhasePlanner, feasibility: Callable[[], PhasePlanner], 
                 deadline: Deadline, grasp_by: Deadline | None = None) -> CostDescent:
     """The grasp of ``planner``'s costed scenario for ``state`` (module docstring): the costed approach's own
     optimum (not under a grasp-wrench limit: :func:`_wrench_limited`), kept if it can be braked; else the planner
-    ``feasibility()`` gives (the same scenario without approach
-    costs, called only then) finds a stabilized grasp, warm from ``warm`` when given; both by ``grasp_by`` (default
-    ``deadline``); then the descent from the grasp kept, until ``deadline``."""
+    ``feasibility()`` gives (the same scenario without approach costs, called only then) finds a stabilized grasp, warm
+    from ``warm`` when given; both by ``grasp_by`` (default ``deadline``); then the descent from the grasp kept, until
+    ``deadline``."""
     grasp_by = deadline if grasp_by is None else grasp_by
     timings_s = {"approach_s": 0.0, "stabilization_s": 0.0}
     limited = _wrench_limited(planner)
@@ -173,8 +173,8 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
              tracking_speed_scale: NDArray[np.float64], deadline: Deadline) -> None:
     """Trust-region steps from the current grasp: the full step first (not under a grasp-wrench limit:
     :func:`_wrench_limited`), then from :data:`FIRST_RADIUS_M`, doubled after a kept step and halved after a refused
-    one; stops after :data:`MAX_STEPS` and the full step, below :data:`MIN_RADIUS_M`,
-    when a step gains nothing, or at ``deadline`` (for a live plan, no step starts later than
+    one; stops after :data:`MAX_STEPS` and the full step, below :data:`MIN_RADIUS_M`, when a step gains nothing, or
+    at ``deadline`` (for a live plan, no step starts later than
     :data:`~planner.deadline.START_LEAD_S` before its approach's start, which every step keeps: the step's approach
     solve ends then, its braking :data:`~planner.deadline.ANSWER_LEAD_S` before the start)."""
     in_time = deadline.in_time_for(out.candidate.app.start_delay_s)
@@ -243,8 +243,8 @@ def _step(planner: PhasePlanner, state: TargetState, motion: TargetMotion, out: 
 def _trackable(planner: PhasePlanner, candidate: GraspCandidate, motion: TargetMotion) -> bool:
     """True when ``candidate``'s tracking asks for no more than the tolerated joint rates and its approach keeps its
     joint-rate limits and its clearance between the via points (a costed step is refused otherwise, not repaired: the
-    feasibility plan's grasp stays the answer). A cost drives the approach's rates onto their via-point bounds, and
-    between via points its spline's rates peak above them."""
+    feasibility plan's grasp stays the answer). Manipulability and clearance costs drive the approach's rates onto
+    their bound: the NLP holds them at its nodes (``ApproachProblem._rate_nodes``), this check at every sample."""
     if candidate.tracking.peak_rate_demand > RATE_DEMAND_TOLERATED:
         return False
     if np.any(np.abs(candidate.approach_samples.qd) > planner.scenario.robot.qd_max):

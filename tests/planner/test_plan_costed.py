@@ -16,6 +16,10 @@ from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
 from planner.nlp.costs import approach_energy
 
 START_S = 30.0  # the grasp's start delay [s after the observation], kept by every step
+QD_MAX = np.full(7, np.radians(20.0))  # the default chaser's joint-rate limits [rad/s]
+_SAMPLES = SimpleNamespace(qd=np.zeros((3, 7)))  # an approach at rest: within every rate limit
+ROBOT = SimpleNamespace(qd_max=QD_MAX)
+UNLIMITED = SimpleNamespace(grasp_force_max_n=np.inf, grasp_torque_max_nm=np.inf)  # scenario I's grasp wrench
 
 
 class _Stand:
@@ -46,12 +50,6 @@ class _Stand:
 
         return SimpleNamespace(app=app, tracking=SimpleNamespace(peak_rate_demand=1.0), approach_samples=_SAMPLES,
                                stabilize=stabilize)
-
-
-QD_MAX = np.full(7, np.radians(20.0))  # the default chaser's joint-rate limits [rad/s]
-_SAMPLES = SimpleNamespace(qd=np.zeros((3, 7)))  # an approach at rest: within every rate limit
-ROBOT = SimpleNamespace(qd_max=QD_MAX)
-UNLIMITED = SimpleNamespace(grasp_force_max_n=np.inf, grasp_torque_max_nm=np.inf)  # scenario I's grasp wrench
 
 
 def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE,
