@@ -212,7 +212,7 @@ def _at_its_floor(planner: PhasePlanner, cost: float) -> bool:
     """True when no step can lower ``cost`` by :data:`RELATIVE_GAIN_MIN`: Eq. 16 weighted alone is ≥ 0 (a scenario I
     optimum is ~1e-9 m²; four refused steps there cost a table point 60 s), the other terms have no floor."""
     c = planner.scenario.costs
-    only_energy = c.approach_energy > 0 and c.manipulability == 0 and c.min_distance == 0
+    only_energy = c.approach_energy > 0 and not c.weights_arm_motion
     return only_energy and cost < RELATIVE_GAIN_MIN
 
 

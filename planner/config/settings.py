@@ -178,9 +178,14 @@ class CostWeights:
     overscale: float  # robot geometry scale for the distance cost (paper §5)
 
     @property
+    def weights_arm_motion(self) -> bool:
+        """True when a term that shapes the arm's motion is weighted: manipulability (Eq. 14) or clearance (Eq. 15)."""
+        return self.manipulability > 0 or self.min_distance > 0
+
+    @property
     def weights_approach(self) -> bool:
         """True when a cost term of the approach NLP (Eq. 14-16) is weighted."""
-        return self.manipulability > 0 or self.min_distance > 0 or self.approach_energy > 0
+        return self.weights_arm_motion or self.approach_energy > 0
 
     def without_approach_terms(self) -> CostWeights:
         """These weights with the approach NLP's terms (Eq. 14-16) set to 0: a costed plan's feasibility stage."""

@@ -233,8 +233,7 @@ class ApproachProblem:
         bounds, and the spline's rates then peak between via points (scenario II's safety descent: 1.029× a limit
         between two 0.5 s apart); Eq. 16 weighs θ_b(0) alone and leaves the rates inside (a scenario II energy plan's
         at 0.88 of the limits at most). The rows are linear in the spline's parameters, so cheap."""
-        c = self.scenario.costs
-        return list(range(1, self.m_steps)) if c.manipulability > 0 or c.min_distance > 0 else via_idx
+        return list(range(1, self.m_steps)) if self.scenario.costs.weights_arm_motion else via_idx
 
     def _add_collision(self, all_poses: list[ca.MX]) -> None:
         """Signed distance of every pair at the via points and tracking nodes ≥ its clearance (Eq. 19)."""

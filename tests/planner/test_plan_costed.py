@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import planner.plan_costed as costed
+from planner.config.settings import CostWeights
 from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
 from planner.nlp.costs import approach_energy
 
@@ -20,6 +21,10 @@ QD_MAX = np.full(7, np.radians(20.0))  # the default chaser's joint-rate limits 
 _SAMPLES = SimpleNamespace(qd=np.zeros((3, 7)))  # an approach at rest: within every rate limit
 ROBOT = SimpleNamespace(qd_max=QD_MAX)
 UNLIMITED = SimpleNamespace(grasp_force_max_n=np.inf, grasp_torque_max_nm=np.inf)  # scenario I's grasp wrench
+FEASIBILITY_WEIGHTS = CostWeights(manipulability=0.0, min_distance=0.0, approach_energy=0.0, attitude_disturbance=0.0,
+                                  peak_wrench=0.0, overscale=1.0)
+WRENCH_LIMITS = [SimpleNamespace(grasp_force_max_n=np.inf, grasp_torque_max_nm=10.0),  # scenario II's ±10 N·m
+                 SimpleNamespace(grasp_force_max_n=50.0, grasp_torque_max_nm=np.inf)]  # a force limit alone
 
 
 class _Stand:
@@ -55,7 +60,7 @@ class _Stand:
 def _descend(monkeypatch, stand: _Stand, deadline: Deadline = NO_DEADLINE,
              limits: SimpleNamespace = UNLIMITED) -> costed.CostDescent:
     monkeypatch.setattr(costed, "solve_approach_near", stand.solve)
-    costs = SimpleNamespace(approach_energy=1.0, manipulability=0.0, min_distance=0.0)
+    costs = replace(FEASIBILITY_WEIGHTS, approach_energy=1.0)
     planner = SimpleNamespace(approach=stand.approach, approach_and_tracking=lambda app, motion: (None, None),
                               candidate_from=lambda app, samples, tr, motion: stand.candidate(app),
                               approach_clearance=SimpleNamespace(raised_bounds=lambda app, samples, motion: (None, [])),
@@ -92,8 +97,7 @@ def test_thin_stabilizable_set_keeps_only_steps_inside_it(monkeypatch):
     assert len(stand.radii) <= costed.MAX_STEPS + 1
 
 
-@pytest.mark.parametrize("limits", [SimpleNamespace(grasp_force_max_n=np.inf, grasp_torque_max_nm=10.0),
-                                    SimpleNamespace(grasp_force_max_n=50.0, grasp_torque_max_nm=np.inf)])
+@pytest.mark.parametrize("limits", WRENCH_LIMITS)
 def test_under_a_grasp_wrench_limit_no_full_step_is_tried(monkeypatch, limits):
     """Under a wrench limit (scenario II's ±10 N·m, or a force limit) the descent starts at the first radius: on the
     thin stabilizable set it tries exactly the steps the unlimited schedule tries after its refused full step and ends
@@ -223,17 +227,17 @@ def test_an_unbraked_costed_optimum_falls_back_to_the_feasibility_plan(monkeypat
     assert "feasibility note" in out.notes and "at the feasibility plan's grasp" in out.notes[-1]
 
 
-def test_under_a_grasp_wrench_limit_the_costed_optimum_is_not_tried(monkeypatch):
-    """Scenario II's ±10 N·m: the costed approach's own optimum lies outside the grasps that can be braked, so no
-    costed solve is made, even where it would have been braked; the feasibility plan's grasp comes first, with all of
-    the time, and the note says why."""
-    for braked in (False, True):
-        d = _Direct(monkeypatch, braked=braked, limits=SimpleNamespace(grasp_force_max_n=np.inf,
-                                                                        grasp_torque_max_nm=10.0))
-        out = d.plan(Deadline.after(100.0))
-        assert d.approach_calls == [] and len(d.searches) == 1 and d.feasibility_built
-        assert out.cost_start == pytest.approx(0.5) and out.timings_s == {"approach_s": 10.0, "stabilization_s": 20.0}
-        assert "is not tried under the grasp-wrench limit" in out.notes[0]
+@pytest.mark.parametrize("limits", WRENCH_LIMITS)
+@pytest.mark.parametrize("braked", [False, True])
+def test_under_a_grasp_wrench_limit_the_costed_optimum_is_not_tried(monkeypatch, limits, braked):
+    """Scenario II's ±10 N·m (or a force limit): the costed approach's own optimum lies outside the grasps that can be
+    braked, so no costed solve is made, even where it would have been braked; the feasibility plan's grasp comes
+    first, with all of the time, and the note says why."""
+    d = _Direct(monkeypatch, braked=braked, limits=limits)
+    out = d.plan(Deadline.after(100.0))
+    assert d.approach_calls == [] and len(d.searches) == 1 and d.feasibility_built
+    assert out.cost_start == pytest.approx(0.5) and out.timings_s == {"approach_s": 10.0, "stabilization_s": 20.0}
+    assert "is not tried under the grasp-wrench limit" in out.notes[0]
 
 
 def test_the_costed_optimum_gets_half_of_a_bounded_budget(monkeypatch):
@@ -381,5 +385,5 @@ def test_a_costed_grasp_must_track_and_keep_its_limits_between_via_points(rate, 
     ({"min_distance": 1.0}, -0.5, False),
 ])
 def test_the_descent_stops_only_where_no_step_can_gain(weights, cost, floor):
-    costs = SimpleNamespace(**({"approach_energy": 0.0, "manipulability": 0.0, "min_distance": 0.0} | weights))
+    costs = replace(FEASIBILITY_WEIGHTS, **weights)
     assert costed._at_its_floor(SimpleNamespace(scenario=SimpleNamespace(costs=costs)), cost) is floor
