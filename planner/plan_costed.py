@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from planner.deadline import START_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner
+from planner.grasp_holds import RATE_DEMAND_TOLERATED
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.feasibility_stop import StallRule
 from planner.phases.approach_guess import ScanOnDemand
@@ -34,7 +35,6 @@ from planner.phases.approach_solve import (
 )
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan_grasps import (
-    RATE_DEMAND_TOLERATED,
     SCREEN_BUDGET,
     STABILIZATION_BUDGET,
     GraspSearch,

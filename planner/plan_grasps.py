@@ -25,35 +25,25 @@ from numpy.typing import NDArray
 from planner.config.scenario import Scenario
 from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner, accumulated
+from planner.grasp_holds import RATE_DEMAND_TOLERATED, why_unheld
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachSolution
+from planner.phases.approach_bounds import AS_SOLVED, ApproachBounds
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
+from planner.phases.approach_rates import lowered_rates
 from planner.phases.approach_solve import COLD_START_ITERATIONS, TriedGrasp, solve_approach, solve_approach_from_base
 from planner.phases.approach_start import base_offset_grid
 from planner.phases.scan_in_time import scan_in_time
 from planner.phases.stabilization import StabilizationSolution
 from planner.phases.tracking import TrackingResult
-from planner.phases.tracking_clearance import tracking_dip
 from planner.phases.tracking_profile import TRACKING_NODES, node_segment
 from planner.plan_parameters import ApproachParameters, PlanParameters
 from planner.plan_samples import PhaseSamples
-from planner.verify.checks import (
-    GRASP_ANGULAR_VELOCITY_TOL_RAD_S,
-    GRASP_ORIENTATION_TOL_RAD,
-    GRASP_POSITION_TOL_M,
-    GRASP_VELOCITY_TOL_M_S,
-)
 
 Array = NDArray[np.float64]
 
 TIGHTENING_ROUNDS = 2
-# the IK's rate cap absorbs a demand up to this × the limit (capped, the feedback still meets the grasp far
-# inside verify's thresholds); beyond it the lag grows and the approach is re-solved instead
-RATE_DEMAND_TOLERATED = 1.25
-# a tracking still asking for more after its re-solve holds if, capped, it met the grasp within this fraction of
-# verify's grasp tolerances (scenario II tumbles at 1.34-1.69× met it within 0.02-0.39 of them)
-GRASP_MET_FRACTION = 0.5
 TIGHTENING_MARGIN = 0.97  # a tightened rate bound sits this far below what the IK asked for
 # a cold plan whose stabilization fails tries the grasps reached from the approach's next scanned guesses, up
 # to this many guesses in all: scenario II's grasps are mostly unbrakeable within ±10 N·m (screened out), and a
@@ -97,16 +87,6 @@ def other_base_offsets(scenario: Scenario, first_m: Array) -> list[Array]:
     grid = base_offset_grid(scenario, BASE_OFFSETS_PER_AXIS)
     away = [b for b in grid if np.linalg.norm(b - first_m) >= BASE_OFFSET_GAP_M]
     return sorted(away, key=lambda b: -float(np.linalg.norm(b - first_m)))
-
-
-def met_grasp(tr: TrackingResult) -> bool:
-    """True when the tracking ``tr`` met the grasp within :data:`GRASP_MET_FRACTION` of verify's grasp tolerances
-    (position, orientation, relative velocity and angular velocity at the grasp instant)."""
-    errors = (tr.position_error_m, tr.orientation_error_rad, tr.relative_velocity_m_s,
-              tr.relative_angular_velocity_rad_s)
-    tolerances = (GRASP_POSITION_TOL_M, GRASP_ORIENTATION_TOL_RAD, GRASP_VELOCITY_TOL_M_S,
-                  GRASP_ANGULAR_VELOCITY_TOL_RAD_S)
-    return all(e <= GRASP_MET_FRACTION * tol for e, tol in zip(errors, tolerances, strict=True))
 
 
 def approach_retry_budget(first_iterations: int) -> int:
@@ -318,10 +298,11 @@ class GraspSearch:
 
     def _candidate(self, app: ApproachSolution) -> GraspCandidate:
         """Approach → tracking (re-solving the approach with tightened tracking rates if the IK asked for too much,
-        or with raised collision bounds where the distance dipped between via points) → the compound's state at the
-        grasp."""
-        raised = None  # this grasp's raised collision bounds [m], kept through its re-solves
+        or with raised collision bounds or lowered rate bounds where a distance dipped or a joint's rate peaked between
+        via points) → the compound's state at the grasp."""
+        tightened = AS_SOLVED  # this grasp's tighter via-point bounds, kept through its re-solves
         mended = True  # False once a re-solve failed: the first approach, still wanting, is kept
+        checked = False  # True once the last approach was read between its via points and held there
         for round_ in range(TIGHTENING_ROUNDS + 1):
             samples, tr = self.planner.approach_and_tracking(app, self.motion)
             if round_ == TIGHTENING_ROUNDS or not app.success or self.deadline.passed:
@@ -329,16 +310,17 @@ class GraspSearch:
             if tr.peak_rate_demand > RATE_DEMAND_TOLERATED:
                 self._tighten_rates(tr)
             else:
-                more = self._raised_clearance(app, samples)
+                more = self._between_via_points(app, samples, tightened)
                 if more is None:
+                    checked = True
                     break
-                raised = more if raised is None else np.maximum(raised, more)
+                tightened = tightened.and_(more)
             # near the grasp whose demand was measured (free, a retry drifted back to a grasp that had failed); should
             # the warm start fail, only this grasp's own scanned guess (others are other grasps, tried in turn)
             own = app.start_guess
             retry = self._solve_approach(app.parameters, max_starts=1 if own >= 0 else 0,
                                          skip_guesses=max(own, 0), meeting_time_box_s=MEETING_TIME_BOX_S,
-                                         collision_raise_m=raised, max_iterations=self.resolve_iterations)
+                                         tightened=tightened, max_iterations=self.resolve_iterations)
             if not retry.success:
                 # keep the first solution (the verifier will name its rate excess), but count the time
                 app = accumulated(app, retry)
@@ -347,28 +329,7 @@ class GraspSearch:
                 break
             app = accumulated(retry, app)
         return replace(self.planner.candidate_from(app, samples, tr, self.motion),
-                       unheld_because=self._why_unheld(app, samples, tr, mended))
-
-    def _why_unheld(self, app: ApproachSolution, samples: PhaseSamples, tr: TrackingResult, mended: bool) -> str:
-        """Why the grasp ``app`` (sampled densely as ``samples``) and its tracking ``tr`` reach does not hold, "" when
-        it does; ``mended``: False when a re-solve failed and the first approach was kept."""
-        if not app.success:
-            return f"its approach failed ({app.status})"
-        over = tr.peak_rate_demand > RATE_DEMAND_TOLERATED
-        if over and not met_grasp(tr):
-            return (f"its tracking asks {tr.peak_rate_demand:.3g}× a joint's rate limit after its re-solve and, "
-                    f"capped, misses the grasp by {tr.position_error_m:.2g} m, {tr.orientation_error_rad:.2g} rad, "
-                    f"{tr.relative_velocity_m_s:.2g} m/s, {tr.relative_angular_velocity_rad_s:.2g} rad/s")
-        # with the rates within bounds a failed re-solve was the clearance's; with them over, the approach kept was
-        # never checked between its via points
-        dips = bool(self.planner.approach_clearance.raised_bounds(app, samples, self.motion)[1]) if over else not mended
-        if dips:
-            return "its approach dips below its clearance between via points after its re-solve"
-        dip = tracking_dip(self.planner.approach_clearance, tr, self.motion)
-        if dip is not None:
-            return (f"its tracking IK's arm dips below its clearance ({dip.pair} {dip.distance_m:.4f} m, clearance "
-                    f"{dip.clearance_m:.3g} m, {dip.t_s:.2f} s into the tracking at t = {tr.t[0] + dip.t_s:.2f} s)")
-        return ""
+                       unheld_because=why_unheld(self.planner, self.motion, app, samples, tr, mended, checked))
 
     def _tighten_rates(self, tr: TrackingResult) -> None:
         """Scale the rate bounds of the tracking segment where ``tr``'s demand peaked by the excess, and say so."""
@@ -380,14 +341,24 @@ class GraspSearch:
                           f"tracking: approach re-solved with the rate bounds of tracking segment {segment + 1} "
                           f"scaled by {self.tracking_speed_scale[segment]:.3f}")
 
-    def _raised_clearance(self, app: ApproachSolution, samples: PhaseSamples) -> Array | None:
-        """The collision rows' bounds raised where ``app``'s distances dip between via points (and a note), or None
-        when nothing dips (:mod:`planner.phases.approach_clearance`)."""
+    def _between_via_points(self, app: ApproachSolution, samples: PhaseSamples,
+                            tightened: ApproachBounds) -> ApproachBounds | None:
+        """The via-point bounds that hold ``app``'s clearances and joint rates between its via points (and a note), or
+        None when nothing dips or peaks there (:mod:`planner.phases.approach_clearance`,
+        :mod:`planner.phases.approach_rates`)."""
         raised, dips = self.planner.approach_clearance.raised_bounds(app, samples, self.motion)
-        if not dips:
+        rates, peaks = lowered_rates(self.planner.approach, samples, tightened)
+        if dips:
+            worst = dips[0]
+            self.notes.append(f"{worst.pair} {worst.distance_m:.4f} m (clearance {worst.clearance_m:.3g} m) between "
+                              f"the approach's via points at t = {app.start_delay_s + worst.t_s:.2f} s ({len(dips)} "
+                              "dip(s)): approach re-solved with those pairs' bounds raised at the via points around "
+                              "them")
+        if peaks:
+            p = peaks[0]
+            self.notes.append(f"joint {p.joint + 1} at {p.ratio:.3f}× its rate limit between the approach's via points "
+                              f"at t = {app.start_delay_s + p.t_s:.2f} s ({len(peaks)} peak(s)): approach re-solved "
+                              "with those joints' rate bounds lowered at the via points around them")
+        if not dips and rates is None:
             return None
-        worst = dips[0]
-        self.notes.append(f"{worst.pair} {worst.distance_m:.4f} m (clearance {worst.clearance_m:.3g} m) between the "
-                          f"approach's via points at t = {app.start_delay_s + worst.t_s:.2f} s ({len(dips)} dip(s)): "
-                          f"approach re-solved with those pairs' bounds raised at the via points around them")
-        return raised
+        return (rates or AS_SOLVED).and_(ApproachBounds(collision_raise_m=raised if dips else None))

@@ -212,6 +212,8 @@ class ApproachProblem:
         q_stop = Q_tr[-1] + qd_grasp * (STOPPING_FRACTION * self.scenario.phases.stabilization_s / 2)
         q_box = ca.vertcat(*[chaser.Qn[i, :].T for i in via_idx], *Q_tr, q_stop)
         rate_idx = self._rate_nodes(via_idx)
+        # when the joint-rate rows hold [s since the approach's start]: what planner.phases.approach_rates reads between
+        self.rate_times_s = np.asarray(rate_idx, dtype=float) * self.scenario.phases.approach_s / self.m_steps
         qd_box = ca.vertcat(*[chaser.Qdn[i, :].T for i in rate_idx])
         q_steps = [chaser.q_end, *Q_tr]
         qd_steps = ca.vertcat(*[(q_steps[j + 1] - q_steps[j]) / (t_tr[j] - (t_tr[j - 1] if j else 0.0))

@@ -20,6 +20,7 @@ from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
 from planner.model.target import TargetState
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
+from planner.phases.approach_bounds import AS_SOLVED, ApproachBounds
 from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, angles_apart
 from planner.phases.scan_in_time import meets_in_time, scan_in_time
 from planner.phases.tracking_profile import TRACKING_NODES
@@ -63,7 +64,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
                    tracking_speed_scale: float | Array = 1.0, skip_guesses: int = 0, max_iterations: int | None = None,
                    scan: ScanOnDemand | None = None, deadline: Deadline = NO_DEADLINE,
                    meeting_time_box_s: float | None = None, avoid: tuple[TriedGrasp, ...] = (),
-                   collision_raise_m: Array | None = None) -> ApproachSolution:
+                   tightened: ApproachBounds = AS_SOLVED) -> ApproachSolution:
     """Solve ``problem`` for one observed target state.
 
     With ``warm_start`` (e.g. a solved neighbour of a grid) the NLP starts there; otherwise, and if that fails, it
@@ -82,8 +83,9 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each grasp of ``avoid`` at about its
     angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from
     a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried. A cold Eq. 16
-    solve ends, failed, when its base-pinned solve does (:func:`_base_pinned_first`). ``collision_raise_m`` (the
-    collision rows' order) raises those rows' lower bounds [m] (:mod:`planner.phases.approach_clearance`).
+    solve ends, failed, when its base-pinned solve does (:func:`_base_pinned_first`). ``tightened``: rows held tighter
+    than the NLP's own, where an approach broke its clearance or rates between via points
+    (:mod:`planner.phases.approach_bounds`).
     """
     t0 = time.perf_counter()
     warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, tracking_speed_scale,
@@ -105,7 +107,7 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
         if lbw is None:
             continue
         result = _solve_once(problem, state, w0, tracking_speed_scale, lbw, ubw, cold=cold, max_iterations=limit,
-                             deadline=deadline, collision_raise_m=collision_raise_m)
+                             deadline=deadline, tightened=tightened)
         if cold:
             result = replace(result, start_guess=guess)
         iterations += result.iterations
@@ -288,8 +290,8 @@ def _guesses_in_time(scenario: Scenario, problem: ApproachProblem, state: Target
 def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, tracking_speed_scale: float | Array,
                 lbw: Array | None = None, ubw: Array | None = None, cold: bool = False,
                 max_iterations: int | None = None, deadline: Deadline = NO_DEADLINE,
-                collision_raise_m: Array | None = None) -> ApproachSolution:
-    """One IPOPT run from ``w0`` ``(n_w,)``; ``cold``: starting in the restoration phase; ``collision_raise_m``: as
+                tightened: ApproachBounds = AS_SOLVED) -> ApproachSolution:
+    """One IPOPT run from ``w0`` ``(n_w,)``; ``cold``: starting in the restoration phase; ``tightened``: as
     :func:`solve_approach`'s."""
     p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
@@ -306,8 +308,7 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     per_row = np.repeat(np.broadcast_to(tracking_speed_scale, (len(TRACKING_NODES),)), problem.robot.n_joints)
     lbg[rates] *= per_row
     ubg[rates] *= per_row
-    if collision_raise_m is not None:
-        lbg[problem.constraints.slice("collision")] += collision_raise_m
+    tightened.applied(problem, lbg, ubg)
     solver = problem.cold_solver if cold else problem.solver
     problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations,
                        deadline=start_deadline(problem, ubw, deadline))

@@ -7,6 +7,7 @@ scenario II state is in ``test_plan_scenarios.py`` (slow).
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from dataclasses import replace
@@ -16,17 +17,21 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import planner.grasp_holds as grasp_holds_module
 import planner.phases.approach_guess as approach_guess_module
 import planner.phases.approach_solve as approach_solve_module
 import planner.plan_grasps as plan_grasps_module
 from planner.config.scenario import load_scenario
 from planner.deadline import Deadline
+from planner.grasp_holds import met_grasp
 from planner.nlp.outcome import SolveOutcome
+from planner.phases.approach import ApproachSolution
 from planner.phases.approach_clearance import ClearanceDip
 from planner.phases.approach_guess import angles_apart
 from planner.phases.stabilization import StabilizationSolution
 from planner.plan import GRASP_GUESSES, STABILIZATION_BUDGET, GraspCandidate, Planner, approach_retry_budget
 from planner.plan_grasps import BASE_OFFSET_BOX_M, BASE_OFFSET_GAP_M, SCREEN_BUDGET, other_base_offsets
+from planner.plan_parameters import ApproachParameters
 from planner.verify.before_grasp import failed_before_grasp
 from planner.verify.verifier import verify
 
@@ -473,9 +478,9 @@ def test_a_tracking_that_asks_too_much_after_a_failed_re_solve_holds_only_if_it_
 def test_the_grasp_is_met_within_half_of_each_of_verifys_grasp_tolerances():
     met = SimpleNamespace(position_error_m=0.5e-3, orientation_error_rad=0.5 * np.radians(0.1),
                           relative_velocity_m_s=0.5e-3, relative_angular_velocity_rad_s=0.5 * np.radians(0.05))
-    assert plan_grasps_module.met_grasp(met)  # at half of each, exactly
+    assert met_grasp(met)  # at half of each, exactly
     for field, value in vars(met).items():
-        assert not plan_grasps_module.met_grasp(SimpleNamespace(**{**vars(met), field: value * (1 + 1e-9)})), field
+        assert not met_grasp(SimpleNamespace(**{**vars(met), field: value * (1 + 1e-9)})), field
 
 
 def test_a_tracking_whose_arm_dips_below_its_clearance_does_not_hold(planner_II, monkeypatch):
@@ -486,7 +491,72 @@ def test_a_tracking_whose_arm_dips_below_its_clearance_does_not_hold(planner_II,
     scan = approach_guess_module.ScanOnDemand(sc, planner.approach.spline, state, GRASP_GUESSES)
     search = plan_grasps_module.GraspSearch(planner, state, None, scan, planner.motion(state))
     app = search._solve_approach(None)
-    monkeypatch.setattr(plan_grasps_module, "tracking_dip", lambda *a: ClearanceDip("link2-target", 1.82, -0.125, 0.02))
+    monkeypatch.setattr(grasp_holds_module, "tracking_dip", lambda *a: ClearanceDip("link2-target", 1.82, -0.125, 0.02))
     unheld = search._candidate(app)
     assert not unheld.approach_holds
     assert "tracking IK's arm dips" in unheld.unheld_because and "link2-target -0.1250 m" in unheld.unheld_because
+
+
+def test_an_approach_whose_rates_peak_between_via_points_is_re_solved_and_else_does_not_hold(planner_II,
+                                                                                               monkeypatch):
+    """The stored approach of scenario II's default state whose joint 7 peaks at 1.029× its limit between two via
+    points (tests/data/approach_rate_peak_II_safety.json), given to the grasp search as its first approach: the search
+    says so and re-solves it with that joint's via-point bounds lowered, and the grasp holds, its rates within their
+    limits at every sample; with the re-solve failing, the grasp does not hold and says why."""
+    sc, planner = planner_II
+    state = sc.target_state.as_state()
+    doc = json.loads((Path(__file__).resolve().parents[1] / "data" / "approach_rate_peak_II_safety.json").read_text())
+    peaked = ApproachSolution.given(ApproachParameters(np.asarray(doc["approach_params"]),
+                                                       np.asarray(doc["base_offset_m"]), float(doc["start_delay_s"]),
+                                                       np.asarray(doc["q_tracking_rad"])))
+    scan = approach_guess_module.ScanOnDemand(sc, planner.approach.spline, state, GRASP_GUESSES)
+    search = plan_grasps_module.GraspSearch(planner, state, None, scan, planner.motion(state))
+    held = search._candidate(peaked)
+    assert held.approach_holds, held.unheld_because
+    assert any(n.startswith("joint 7 at 1.0") and "its rate limit between the approach's via points" in n
+               for n in search.notes), search.notes
+    assert np.all(np.abs(held.approach_samples.qd) <= planner.scenario.robot.qd_max)
+    monkeypatch.setattr(search, "_solve_approach", lambda *a, **k: replace(peaked, success=False))
+    unheld = search._candidate(peaked)
+    assert not unheld.approach_holds and "the re-solve failed" in search.notes[-1]
+    assert unheld.unheld_because.startswith("its approach asks 1.0") and "× joint 7's rate limit between via points" \
+        in unheld.unheld_because and unheld.unheld_because.endswith("after its re-solve")
+
+
+def test_an_approach_the_rounds_end_on_is_read_between_its_via_points(planner_II, monkeypatch):
+    """The re-solves' rounds can end on an approach re-solved for its tracking's rates, never read between its via
+    points (envelope point 38 of scenario II's coarse flat-spin grid: braked, then refused for link 7 3 cm into the
+    target). Such an approach is read before the grasp is braked: 2.97 cm below the clearance it does not hold, and
+    says where; 0.5 mm above it (inside the re-solves' 1 mm trigger, outside verify's reach) it holds. An approach
+    whose round found nothing between its via points is not read again."""
+    sc, planner = planner_II
+    state = sc.target_state.as_state()
+    scan = approach_guess_module.ScanOnDemand(sc, planner.approach.spline, state, GRASP_GUESSES)
+    search = plan_grasps_module.GraspSearch(planner, state, None, scan, planner.motion(state))
+    app = search._solve_approach(None)
+    tracked = planner.approach_and_tracking
+    monkeypatch.setattr(search, "_solve_approach", lambda *a, **k: app)
+    reads: list[float] = []
+    for distance_m, holds in ((-0.0297, False), (0.0205, True)):
+        dip = ClearanceDip("link7-target", 1.0, distance_m, 0.02)
+        monkeypatch.setattr(planner.approach_clearance, "raised_bounds",
+                            lambda *a, dip=dip: reads.append(dip.distance_m) or (np.zeros(1), [dip]))
+        calls = []
+
+        def over_twice(a, m, calls=calls):  # rounds 0 and 1 re-solve for the tracking; round 2, within it, ends
+            samples, tr = tracked(a, m)
+            calls.append(a)
+            return samples, replace(tr, peak_rate_demand=1.3) if len(calls) <= 2 else tr
+
+        monkeypatch.setattr(planner, "approach_and_tracking", over_twice)
+        candidate = search._candidate(app)
+        assert len(calls) == 3 and candidate.tracking.peak_rate_demand <= plan_grasps_module.RATE_DEMAND_TOLERATED
+        assert candidate.approach_holds is holds and reads == [distance_m]
+        if not holds:
+            assert candidate.unheld_because == ("its approach dips below its clearance between via points "
+                                                "(link7-target -0.0297 m, clearance 0.02 m)")
+        reads.clear()
+    monkeypatch.setattr(planner, "approach_and_tracking", tracked)
+    monkeypatch.setattr(planner.approach_clearance, "raised_bounds",
+                        lambda *a: reads.append(0.0) or (np.zeros(1), []))
+    assert search._candidate(app).approach_holds and reads == [0.0]  # read once, in the round, not again
