@@ -526,9 +526,10 @@ def test_an_approach_whose_rates_peak_between_via_points_is_re_solved_and_else_d
 def test_an_approach_the_rounds_end_on_is_read_between_its_via_points(planner_II, monkeypatch):
     """The re-solves' rounds can end on an approach re-solved for its tracking's rates, never read between its via
     points (envelope point 38 of scenario II's coarse flat-spin grid: braked, then refused for link 7 3 cm into the
-    target). Such an approach is read before the grasp is braked: 2.97 cm below the clearance it does not hold, and
-    says where; 0.5 mm above it (inside the re-solves' 1 mm trigger, outside verify's reach) it holds. An approach
-    whose round found nothing between its via points is not read again."""
+    target). Such an approach is read before the grasp is braked: 2.97 cm into the target (the 2 cm clearance missed by
+    4.97 cm) it does not hold, and says where; 0.5 mm above the clearance (inside the re-solves' 1 mm trigger, not a
+    violation verify would find) it holds. An approach whose round found nothing between its via points is not read
+    again."""
     sc, planner = planner_II
     state = sc.target_state.as_state()
     scan = approach_guess_module.ScanOnDemand(sc, planner.approach.spline, state, GRASP_GUESSES)
