@@ -39,8 +39,9 @@ def why_unheld(planner: PhasePlanner, motion: TargetMotion, app: ApproachSolutio
                tr: TrackingResult, mended: bool, checked: bool) -> str:
     """Why the grasp ``app`` (sampled densely as ``samples``) and its tracking ``tr`` reach does not hold, "" when it
     does; ``mended``: False when a re-solve failed and the first approach was kept; ``checked``: True when ``app``'s
-    clearance was read between its via points and held (else it is read here: the rounds of re-solves can end on an
-    approach re-solved for its tracking's rates, a scenario II flat spin's 3 cm into the target)."""
+    clearance and joint rates were read between its via points and held (else they are read here: the rounds of
+    re-solves can end on an approach re-solved for its tracking's rates, a scenario II flat spin's 3 cm into the
+    target)."""
     if not app.success:
         return f"its approach failed ({app.status})"
     over = tr.peak_rate_demand > RATE_DEMAND_TOLERATED
@@ -48,7 +49,7 @@ def why_unheld(planner: PhasePlanner, motion: TargetMotion, app: ApproachSolutio
         return (f"its tracking asks {tr.peak_rate_demand:.3g}× a joint's rate limit after its re-solve and, "
                 f"capped, misses the grasp by {tr.position_error_m:.2g} m, {tr.orientation_error_rad:.2g} rad, "
                 f"{tr.relative_velocity_m_s:.2g} m/s, {tr.relative_angular_velocity_rad_s:.2g} rad/s")
-    peaks = rate_peaks(planner.approach, samples, above=1.0)
+    peaks = [] if checked else rate_peaks(planner.approach, samples, above=1.0)
     if peaks:
         p = peaks[0]
         return (f"its approach asks {p.ratio:.3f}× joint {p.joint + 1}'s rate limit between via points "

@@ -361,4 +361,5 @@ class GraspSearch:
                               "with those joints' rate bounds lowered at the via points around them")
         if not dips and rates is None:
             return None
-        return (rates or AS_SOLVED).and_(ApproachBounds(collision_raise_m=raised if dips else None))
+        raised_only = ApproachBounds(collision_raise_m=raised) if dips else AS_SOLVED
+        return raised_only if rates is None else raised_only.and_(rates)

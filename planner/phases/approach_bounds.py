@@ -27,14 +27,11 @@ class ApproachBounds:
     rate_upper_rad_s: Array | None = None  # their upper bounds [rad/s]
 
     def applied(self, problem: ApproachProblem, lbg: Array, ubg: Array) -> None:
-        """Tighten ``lbg`` and ``ubg`` (``problem``'s rows) in place."""
+        """Tighten ``lbg`` and ``ubg`` (``problem``'s rows; its joint-velocity rows as the NLP has them) in place."""
         if self.collision_raise_m is not None:
             lbg[problem.constraints.slice("collision")] += self.collision_raise_m
         rates = problem.constraints.slice("joint_velocities")
-        if self.rate_lower_rad_s is not None:
-            lbg[rates] = np.maximum(lbg[rates], self.rate_lower_rad_s)
-        if self.rate_upper_rad_s is not None:
-            ubg[rates] = np.minimum(ubg[rates], self.rate_upper_rad_s)
+        lbg[rates], ubg[rates] = self.rates(problem)
 
     def rates(self, problem: ApproachProblem) -> tuple[Array, Array]:
         """The joint-velocity rows' bounds ``(lower, upper)`` [rad/s] these hold (copies)."""

@@ -116,8 +116,11 @@ def test_the_dense_check_finds_the_peak_between_via_points_and_the_re_solve_hold
         excess = abs(worst.rate_rad_s) - 0.97 * plain.robot.qd_max[6]
         tightened = upper if worst.rate_rad_s > 0 else -lower
         assert tightened[7 * r + 6] == pytest.approx(max(abs(rate) - excess, 0.0), abs=1e-9)
-    touched = {7 * r + p.joint for p in peaks for r in np.searchsorted(plain.rate_times_s, [p.t_s]) + [-1, 0]}
-    untouched = np.setdiff1d(np.arange(len(lower)), list(touched))
+    touched = set()
+    for p in peaks:  # the rows of the two via points around each peak (one before the first via point)
+        after = int(np.searchsorted(plain.rate_times_s, p.t_s))
+        touched |= {7 * r + p.joint for r in (after - 1, after) if r >= 0}
+    untouched = np.setdiff1d(np.arange(len(lower)), sorted(touched))
     np.testing.assert_array_equal(lower[untouched], own_lower[untouched])
     np.testing.assert_array_equal(upper[untouched], own_upper[untouched])
     state = load_scenario(ROOT / "configs" / "scenarios" / "scenario_II_safety.toml").target_state.as_state()
