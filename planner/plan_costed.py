@@ -57,7 +57,7 @@ RELATIVE_GAIN_MIN = 1e-4  # a step must lower the cost by this fraction of max(|
 COSTED_APPROACH_ITERATIONS = COLD_START_ITERATIONS
 # the feasibility stage's re-solves of an approach with tightened tracking rates (or raised clearances) get this many
 # IPOPT iterations: at scenario I flat spins they ran 496-759 (68-99 s of a 100 s budget) where the costed approach's
-# own optimum needed no tightening and was braked in seconds (README "Optimal tables")
+# own optimum needed no tightening and was braked in seconds (docs/measurements.md, "Optimal tables")
 FEASIBILITY_RESOLVE_ITERATIONS = COLD_START_ITERATIONS
 DIRECT_SHARE = 0.5  # of a bounded budget, for the costed approach's own optimum before any feasibility plan
 # a live plan's costed optimum ends this long after the observation at the latest [s]: where it is braked (scenario
@@ -199,11 +199,11 @@ def _descend(planner: PhasePlanner, state: TargetState, motion: TargetMotion, ou
 
 def _wrench_limited(planner: PhasePlanner) -> bool:
     """True when the scenario limits the grasp wrench. Then the grasps that can be braked are a few centimetres of
-    θ_b(0) wide (README "Optimal tables"), and the costed approach's own optimum, over every meeting time or at the
-    descent's (its full step), lies decimetres away: in scenario II none was kept (the energy variant's base-pinned
-    starts converged at none of the states traced, the safety variant's optimum was not kept at its default state, the
-    full step was refused at 15 of 15), each attempt a solve for nothing (4-20 s); without a limit (scenario I) they
-    are how the optimum is reached in one go."""
+    θ_b(0) wide (docs/measurements.md, "Optimal tables"), and the costed approach's own optimum, over every meeting time
+    or at the descent's (its full step), lies decimetres away: in scenario II none was kept (the energy variant's
+    base-pinned starts converged at none of the states traced, the safety variant's optimum was not kept at its default
+    state, the full step was refused at 15 of 15), each attempt a solve for nothing (4-20 s); without a limit (scenario
+    I) they are how the optimum is reached in one go."""
     limits = planner.scenario.limits
     return bool(np.isfinite(limits.grasp_torque_max_nm) or np.isfinite(limits.grasp_force_max_n))
 

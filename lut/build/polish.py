@@ -3,11 +3,11 @@ point's (or that has no feasible plan) is solved again warm from its cheaper fea
 ``--polish-cold``, then cold), and keeps the plan only if it is feasible and cheaper.
 
 Why: a warm-started point stays in its parent's local minimum, and a point whose warm start verify refused is planned
-cold and may fall into a far costlier one than both its neighbours hold (README "Optimal tables"); the query then
-answers near it at that cost. Where no neighbour's warm start leaves that minimum, a cold plan (its own grasp guesses)
-may find a cheaper one. The candidates and their starts are read from the plans as the sweep left them (the journal's
-first record of each point), so the result does not depend on the order the tries finish in, and each candidate's
-outcome (its better plan, or its plan as it was) is journaled once: ``--resume`` skips it.
+cold and may fall into a far costlier one than both its neighbours hold (docs/measurements.md, "Optimal tables"); the
+query then answers near it at that cost. Where no neighbour's warm start leaves that minimum, a cold plan (its own grasp
+guesses) may find a cheaper one. The candidates and their starts are read from the plans as the sweep left them (the
+journal's first record of each point), so the result does not depend on the order the tries finish in, and each
+candidate's outcome (its better plan, or its plan as it was) is journaled once: ``--resume`` skips it.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ from planner.verify.verifier import VerifyReport
 
 # corners whose own plans are tried (by band of cost, each band heaviest first) when the interpolated plan fails
 # verification, before any solve: each costs one re-simulation and verification and perhaps a repair (1-4 s), a refine
-# tens of seconds; a flat-spin cell has 8 corners (README "Optimal tables")
+# tens of seconds; a flat-spin cell has 8 corners (docs/measurements.md, "Optimal tables")
 CORNER_TRIES = 8
 CORNER_STAGE_S = 20.0  # no corner is started once the corners took this long [s]: the solves keep the rest
 FINISH_RESERVE_S = 5.0  # kept back from the budget to re-simulate, verify and export a refined plan [s]

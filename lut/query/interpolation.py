@@ -24,7 +24,7 @@ CONSISTENT_DELAY_S = 3.0  # corners whose carried start delays differ more are n
 SAME_COST_ABS = 1e-4
 SAME_COST_REL = 0.05
 # the corner stage's bands of cost, each this factor above the one before from the cell's lowest cost: a corner left in
-# a far costlier minimum is tried after the nearer-optimal ones, however heavy (README "Optimal tables")
+# a far costlier minimum is tried after the nearer-optimal ones, however heavy (docs/measurements.md, "Optimal tables")
 COST_BAND_RATIO = 1.25
 
 

@@ -61,7 +61,7 @@ from planner.verify.verifier import VerifyReport, verify
 
 # a warm refine of an infeasible interpolated plan gets the build's WARM_SHARE of the time left when a cold solve
 # follows: a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
-# plan (its own guesses) would have found a feasible plan in the rest (README "Optimal tables")
+# plan (its own guesses) would have found a feasible plan in the rest (docs/measurements.md, "Optimal tables")
 # and at most this [s]: a warm refine that fails holds the cold solve back for its whole share, while those that
 # succeed need far less (README "Envelope tables")
 WARM_REFINE_CAP_S = 30.0

@@ -52,7 +52,8 @@ _PLANNERS: dict[str, Planner] = {}
 PLANNERS_KEPT = 2  # a planner holds its compiled problems (hundreds of MB): a kept process keeps few
 # share of the time left within which a warm plan must find a braked grasp when a cold plan follows it: a neighbour's
 # grasp that cannot be braked here held its stabilization to the point's timeout, and the cold plan that would have
-# been feasible never ran (README "Optimal tables"); a costed plan's descent still goes on to the deadline
+# been feasible never ran (docs/measurements.md, "Optimal tables"); a costed plan's descent still goes on to the
+# deadline
 WARM_SHARE = 0.5
 
 

@@ -72,8 +72,9 @@ def test_one_corner_or_equal_costs_are_one_band():
 
 
 def test_the_corner_stage_tries_a_lighter_corner_of_a_cheaper_band_before_a_heavy_costly_one():
-    # seed 7 state 13 of the optimal bench on flat_spin_II_energy_rates (README "Optimal tables"): the 1.75 m² corner
-    # was the heaviest after the cheapest group and was answered; now the 0.93 m² one (1.55 times the lowest) before it
+    # seed 7 state 13 of the optimal bench on flat_spin_II_energy_rates (docs/measurements.md, "Optimal tables"): the
+    # 1.75 m² corner was the heaviest after the cheapest group and was answered; now the 0.93 m² one (1.55 times the
+    # lowest) before it
     corners = [Candidate(58, 0.157, None, 0.674), Candidate(59, 0.118, None, 0.686), Candidate(61, 0.065, None, 0.601),
                Candidate(62, 0.049, None, 0.602), Candidate(67, 0.247, None, 1.75), Candidate(68, 0.185, None, 0.93),
                Candidate(70, 0.102, None, 0.769), Candidate(71, 0.076, None, 0.706)]
