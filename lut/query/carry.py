@@ -1,17 +1,21 @@
-"""How far a tumble table's plan carries: from a grid point farther than a measured attitude or body rate, no plan
-verifies, so the query solves at the observed state at once (README "How far a plan carries").
+"""How far a table's plans carry: a state farther from them than that is solved at once, none of them tried (none is
+known to verify that far).
 
-A flat-spin table is not judged so: its phase is an exact time shift, and its plans carry across its coarse cells
-(README "Envelope tables": a corner's plan 30° and 0.5 °/s away answers some states).
+A tumble plan (README "How far a plan carries"): a measured attitude or body rate from the nearest grid point. A flat
+spin's phase is an exact time shift, so only its rate and the direction of its spin axis count; inside its grid's box
+its corners are tried as they are (the coarse envelope grid's corners, 60° and 1 °/s apart, answer some states), and
+outside it by more than half that cell they are not: at 20 seeded states that far outside the CI table none of its
+plans verified, and the query lost to the cold plan it ends with (README "A flat-spin table far from the state").
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planner.model.rotation import quat_to_matrix, rotation_log
 from planner.model.target_state import TargetState
@@ -20,46 +24,95 @@ from planner.model.target_state import TargetState
 # repairs): none verified 20° of attitude or 1 °/s of body rate away (README "How far a plan carries")
 CARRY_ATTITUDE_DEG = 20.0
 CARRY_RATE_DEG_S = 1.0
+# a flat spin outside its table's grid: as far as half the coarse envelope grid's cell (60° of spin axis, 1 °/s) from
+# the grid's box its plans are still tried, beyond that not
+FLAT_SPIN_AXIS_DEG = 30.0
+FLAT_SPIN_RATE_DEG_S = 0.5
+
+
+@dataclass(frozen=True)
+class CarryLimits:
+    """How far a plan of one kind of table carries: its attitude (a tumble: the rotation between two attitudes; a flat
+    spin: the angle between two spin axes) [deg] and body rate [deg/s]; ``at_limit``: whether a state exactly that far
+    is already beyond."""
+
+    kind: str
+    attitude_deg: float
+    rate_deg_s: float
+    at_limit: bool
+
+    def beyond(self, attitude_deg: float, rate_deg_s: float) -> bool:
+        """True when a plan this far in attitude or rate is not known to verify."""
+        if self.at_limit:
+            return attitude_deg >= self.attitude_deg or rate_deg_s >= self.rate_deg_s
+        return attitude_deg > self.attitude_deg or rate_deg_s > self.rate_deg_s
+
+
+TUMBLE = CarryLimits("tumble", CARRY_ATTITUDE_DEG, CARRY_RATE_DEG_S, at_limit=True)
+FLAT_SPIN = CarryLimits("flat-spin", FLAT_SPIN_AXIS_DEG, FLAT_SPIN_RATE_DEG_S, at_limit=False)
 
 
 @dataclass(frozen=True)
 class Displacement:
-    """How far an observed state is from a grid point's: the rotation between their attitudes [deg] and the norm of
-    the difference of their body rates [deg/s] (each in its own body frame, as a tumble grid's axes are)."""
+    """How far an observed state is from a table's plans, in attitude [deg] and body rate [deg/s] as ``limits`` measure
+    them: a tumble from grid point ``point`` (each in its own body frame, as a tumble grid's axes are); a flat spin
+    (``point`` None) from its grid's box, in spin axis and rate."""
 
-    point: int
+    point: int | None
     attitude_deg: float
     rate_deg_s: float
+    limits: CarryLimits = TUMBLE
 
     @property
     def beyond_carry(self) -> bool:
-        """True when no tumble plan is known to verify this far (:data:`CARRY_ATTITUDE_DEG`,
-        :data:`CARRY_RATE_DEG_S`)."""
-        return self.attitude_deg >= CARRY_ATTITUDE_DEG or self.rate_deg_s >= CARRY_RATE_DEG_S
+        """True when no plan of this kind is known to verify this far (:attr:`limits`)."""
+        return self.limits.beyond(self.attitude_deg, self.rate_deg_s)
 
     def note(self) -> str:
         """The answer's note: the query solved at the state, and why."""
-        return (f"the table's nearest plan (point {self.point}) is {self.attitude_deg:.1f}° and {self.rate_deg_s:.2f} "
-                f"°/s from this state, beyond what a tumble plan carries ({CARRY_ATTITUDE_DEG:g}°, "
-                f"{CARRY_RATE_DEG_S:g} °/s): its plans not tried")
+        lim = self.limits
+        where = (f"the table's nearest plan (point {self.point}) is {self.attitude_deg:.1f}° and "
+                 f"{self.rate_deg_s:.2f} °/s from this state" if self.point is not None else
+                 f"this state is {self.attitude_deg:.1f}° of spin axis and {self.rate_deg_s:.2f} °/s outside the "
+                 "table's grid")
+        return (f"{where}, beyond what a {lim.kind} plan carries ({lim.attitude_deg:g}°, {lim.rate_deg_s:g} °/s): its "
+                "plans not tried")
 
 
 def displacement(point: int, state: TargetState, point_state: TargetState) -> Displacement:
-    """``state``'s displacement from grid point ``point`` (whose state is ``point_state``); q and −q alike."""
+    """``state``'s displacement from tumble grid point ``point`` (whose state is ``point_state``); q and −q alike."""
     turn = quat_to_matrix(point_state.attitude_wxyz).T @ quat_to_matrix(state.attitude_wxyz)
     angle = float(np.linalg.norm(rotation_log(turn)))
     rate = float(np.linalg.norm(np.asarray(state.omega_body_rad_s) - np.asarray(point_state.omega_body_rad_s)))
     return Displacement(point, math.degrees(angle), math.degrees(rate))
 
 
+def flat_spin_displacement(point: int | None, rate_axis: Sequence[float],
+                           other_rate_axis: Sequence[float]) -> Displacement:
+    """A flat spin's displacement from another (grid point ``point``'s, or None: the nearest of a grid's box):
+    ``rate_axis`` and ``other_rate_axis`` are each (spin rate [deg/s], spin-axis angle in the orbital x–z plane [deg]);
+    the angle between the axes is taken round the circle."""
+    turn = (float(rate_axis[1]) - float(other_rate_axis[1]) + 180.0) % 360.0 - 180.0
+    return Displacement(point, abs(turn), abs(float(rate_axis[0]) - float(other_rate_axis[0])), FLAT_SPIN)
+
+
 def nearest_displacement(corners: list[int], state: TargetState,
                          point_state: Callable[[int], TargetState]) -> Displacement | None:
-    """The displacement of ``state`` from the nearest of ``corners`` (the larger of attitude and rate, each in units
-    of its carry; ``point_state``: a grid point's state); None without corners."""
-    moves = [displacement(c, state, point_state(c)) for c in corners]
+    """The displacement of ``state`` from the nearest of a tumble table's ``corners`` (``point_state``: a grid point's
+    state); None without corners."""
+    return nearest_of([displacement(c, state, point_state(c)) for c in corners])
+
+
+def nearest_of(moves: list[Displacement]) -> Displacement | None:
+    """The nearest of ``moves``: the smallest larger of attitude and rate, each in units of its carry; None if empty."""
     return min(moves, key=_relative_to_carry, default=None)
 
 
 def _relative_to_carry(move: Displacement) -> float:
     """The larger of ``move``'s attitude and rate, each in units of its carry."""
-    return max(move.attitude_deg / CARRY_ATTITUDE_DEG, move.rate_deg_s / CARRY_RATE_DEG_S)
+    return max(move.attitude_deg / move.limits.attitude_deg, move.rate_deg_s / move.limits.rate_deg_s)
+
+
+def rate_and_axis(coords: NDArray[np.float64], axis_names: list[str]) -> tuple[float, float]:
+    """(spin rate [deg/s], spin-axis angle [deg]) of a flat-spin grid's ``coords``, by its axes' names."""
+    return float(coords[axis_names.index("spin_rate_deg_s")]), float(coords[axis_names.index("spin_axis_angle_deg")])

@@ -2,8 +2,8 @@
 given observation error best (``lutgen robustness``'s success probability, on the same draws for each).
 
 The candidates, in order: the plain query's answer (exactly what ``lutgen query`` would return: interpolated,
-nearest, refined or solved), each feasible corner of the cell carried to the state's phase (in a tumble table, those
-within what a tumble plan carries, :mod:`lut.query.carry`), and, while the
+nearest, refined or solved), each feasible corner of the cell carried to the state's phase (those within what a plan
+of the table's kind carries, :mod:`lut.query.carry`), and, while the
 budget allows and the plain answer was not already solved, a warm-started solve from the table's answer.
 Each is re-simulated and verified at the observed state; a feasible one is executed against the same drawn
 true states (common random numbers, so the comparison is paired), and the highest success probability
@@ -115,7 +115,7 @@ def robust_query(tq: TableQuery, state: TargetState, request: RobustRequest, bud
         if time_left() < cost_s:
             break
         if tq.beyond_carry(state, [c.corner]) is not None:
-            continue  # a tumble plan from this far does not verify (lut.query.carry): not worth its simulation
+            continue  # a plan from this far does not verify (lut.query.carry): not worth its simulation
         c0 = time.perf_counter()
         made = tq.verified(state, c.parameters, [c.corner], QuerySource.NEAREST, {})
         if made is not None:  # else it would start before the answer

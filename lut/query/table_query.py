@@ -5,8 +5,8 @@
    the nearest grid coordinates, and the result says so (:mod:`lut.table.grid_projection`).
 2. The feasible corners of the cell, carried to the state (the same spin angle at the meeting), are interpolated —
    only mutually consistent ones at the cell's lowest cost (:mod:`lut.query.interpolation`). Without a feasible
-   corner the nearest feasible point of the table is used. A tumble table's plans farther from the state than a tumble
-   plan carries (:mod:`lut.query.carry`) are not tried: the query goes to step 5's cold solve at once.
+   corner the nearest feasible point of the table is used. The table's plans farther from the state than a plan of
+   its kind carries (:mod:`lut.query.carry`) are not tried: the query goes to step 5's cold solve at once.
 3. The interpolated parameters are re-simulated at the true state (tracking IK, stabilization from the
    actual grasp state) and verified densely.
 4. If the interpolated plan is not feasible only from its grasp on, its stabilization is re-solved warm at the grasp
@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from lut.query.carry import Displacement, nearest_displacement
+from lut.query.carry import Displacement, flat_spin_displacement, nearest_displacement, rate_and_axis
 from lut.query.corner_stage import FINISH_RESERVE_S, MIN_REFINE_S, Attempt, CornerStage
 from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
 from lut.query.least_violating import violates_less
@@ -179,11 +179,15 @@ class TableQuery:
                            self.solve_notes)
 
     def beyond_carry(self, state: TargetState, corners: list[int]) -> Displacement | None:
-        """How far ``state`` is from the nearest of the grid points ``corners`` when a tumble table's plans cannot
-        carry that far (:mod:`lut.query.carry`), else None (a flat-spin table's, no corners, or near enough to try)."""
-        if self.grid.kind != "tumble":
-            return None
-        nearest = nearest_displacement(corners, state, self.grid.state)
+        """How far ``state`` is from the table's plans when they cannot carry that far (:mod:`lut.query.carry`), else
+        None: a tumble table's, from the nearest of the grid points ``corners`` (None without corners); a flat-spin
+        table's, from its grid's box (None inside it)."""
+        if self.grid.kind == "tumble":
+            nearest = nearest_displacement(corners, state, self.grid.state)
+        else:  # how far outside the grid's box the state's flat spin lies (its phase: an exact time shift)
+            names = self.grid.axis_names
+            nearest = flat_spin_displacement(None, rate_and_axis(self.grid.family_coordinates(state), names),
+                                             rate_and_axis(project_to_grid(self.grid, state).coords, names))
         return nearest if nearest is not None and nearest.beyond_carry else None
 
     def solved(self, state: TargetState, warm: PlanParameters | None, made: Attempt | None, corners: list[int],

@@ -84,6 +84,7 @@ def _stand_in(tq: TableQuery, monkeypatch, weights: dict[int, float], feasible: 
         return PointResult(-1, PointStatus.FAILED, "stand-in: no solve")
 
     monkeypatch.setattr(tq, "corner_candidates", lambda state: candidates)
+    monkeypatch.setattr(tq, "beyond_carry", lambda state, corners: None)  # stand-in corners are no grid points
     monkeypatch.setattr(tq, "simulate_and_verify", simulate_and_verify)
     monkeypatch.setattr(tq, "repaired", repaired)
     monkeypatch.setattr(tq, "refine", refine)

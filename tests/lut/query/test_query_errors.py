@@ -31,11 +31,21 @@ def _query(table: Path, *args: str) -> subprocess.CompletedProcess:
 def test_state_outside_the_grid_is_planned_from_the_nearest_grid_state_and_says_so(table):
     """Not refused: the table answers at the grid's edge, the plan is simulated and verified at the observed
     state (here the stand-in records make it infeasible: exit 2, no refine in a 1 s budget)."""
+    proc = _query(table, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", "0,0,4.4", "--budget-s", "1")
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and "error:" not in proc.stderr
+    assert ("note: outside the grid: spin_rate_deg_s = 4.4 not in [3.5, 4]; the table answers at 4; planned and "
+            "verified at the observed state") in proc.stdout
+
+
+def test_state_beyond_what_the_tables_plans_carry_is_solved_at_once_and_says_so(table):
+    """2 °/s beyond the grid's rates: no table plan is tried; with no time to solve in a 1 s budget there is no plan
+    at all (exit 2, never the exit 1 of bad input), and the answer names the nearest point and the carry."""
     proc = _query(table, "--attitude", ON_GRID_ATTITUDE, "--omega-deg-s", "0,0,6", "--budget-s", "1")
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and "error:" not in proc.stderr
-    assert ("note: outside the grid: spin_rate_deg_s = 6 not in [3.5, 4]; the table answers at 4; planned and "
-            "verified at the observed state") in proc.stdout
+    assert "beyond what a flat-spin plan carries (30°, 0.5 °/s): its plans not tried" in proc.stdout + proc.stderr
+    assert "2.00 °/s" in proc.stdout + proc.stderr
 
 
 def test_a_state_a_little_off_the_flat_spin_family_is_planned_and_says_so(table):

@@ -4,8 +4,9 @@ never the exit 1 of bad input).
 
 The state: a scenario II flat spin of the coverage section (seed 7) that no plan can reach (the reach proof: the
 grasp's wrist point beyond the chaser's reach at every meeting time); on the golden table (scenario II, spin axis fixed
-at orbital z) it lies off the grid, so the table's carried plans fail verify. Before, the query then spent half its
-budget on a warm refine and the rest on a cold solve that said out of reach (51 s).
+at orbital z) it lies off the grid, so the table's carried plans fail verify (and lie beyond what a flat-spin plan
+carries). Before, the query then spent half its budget on a warm refine and the rest on a cold solve that said out of
+reach (51 s).
 """
 
 from __future__ import annotations
@@ -39,8 +40,11 @@ def _no_refine(*args, **kwargs):
 
 
 def test_out_of_reach_with_a_table_plan_answers_it_infeasible_without_a_solve(tq, monkeypatch):
-    """The table's plan moved 30 s later (carried to STATE it starts 2.4 s after the observation: too soon, below)."""
+    """The table's plan moved 30 s later (carried to STATE it starts 2.4 s after the observation: too soon, below), and
+    taken as within what a flat-spin plan carries (STATE's 1 °/s is 2.5 °/s from the table's rates, where the query
+    would not try it at all: lut.query.carry): the branch a state out of reach near a table's plan takes."""
     found = tq.interpolate(STATE)
+    monkeypatch.setattr(tq, "beyond_carry", lambda state, corners: None)
     later = replace(found, parameters=found.parameters.with_start_delay(found.parameters.approach.start_delay_s + 30))
     monkeypatch.setattr(tq, "interpolate", lambda state: later)
     monkeypatch.setattr(tq, "refine", _no_refine)

@@ -6,7 +6,8 @@ handle at the grasp, and the answer was INFEASIBLE after a refine.
 
 Beyond what a tumble plan carries (lut.query.carry), the query plans at the state at once: the table's plans and a
 warm refine from them would only spend the budget (README "How far a plan carries"); ``--robust`` judges only the
-corners a tumble plan carries to."""
+corners a tumble plan carries to. A flat-spin table's plans likewise, beyond what a flat-spin plan carries (its spin
+axis and rate)."""
 
 from __future__ import annotations
 
@@ -16,7 +17,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lut.query.carry import nearest_displacement
 from lut.query.result import QuerySource
 from lut.query.robust_choice import RobustRequest, robust_query
 from lut.query.table_query import TableQuery
@@ -102,16 +102,37 @@ def test_a_state_within_carry_tries_the_tables_plan_first(tumble_table, monkeypa
     assert tried[0] == "table plan" and not any("carries" in note for note in result.notes)
 
 
-def test_a_flat_spin_tables_plans_are_always_tried_however_far():
-    """A flat spin's phase is an exact time shift and its corners carry across coarse cells: no carry rule there, even
-    for a state 90° and 2 °/s from every point of the table."""
+def _ci_table_at(rate_deg_s: float, axis_deg: float) -> tuple[TableQuery, TargetState]:
+    """The CI golden table (scenario II flat spins at 3.5-4 °/s, spin axis 90°, phase 0-20°) and the flat spin of
+    that rate and spin axis, phase 10°."""
     tq = TableQuery(ROOT / "tests" / "data" / "ci_golden.h5")
-    point = tq.grid.state(0)
-    far = TargetState(quat_multiply(point.attitude_wxyz, [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]),
-                      point.omega_body_rad_s + np.radians([2.0, 0.0, 0.0]))
-    found = tq.interpolate(far)
-    assert found is not None and nearest_displacement(found.corners, far, tq.grid.state).beyond_carry
-    assert tq.beyond_carry(far, found.corners) is None
+    return tq, tq.grid.state_at([rate_deg_s, axis_deg, 10.0])
+
+
+@pytest.mark.parametrize(("rate_deg_s", "axis_deg"), [(4.0, 125.0), (4.6, 90.0), (3.75, 270.0), (1.0, 60.0)])
+def test_a_flat_spin_beyond_what_its_tables_plans_carry_is_planned_at_once(monkeypatch, rate_deg_s, axis_deg):
+    """35° of spin axis, 0.6 °/s of rate, the opposite axis, both: outside the table's box by more than half the
+    coarse envelope cell, where none of its plans verified; the cold solve is the first stage, and the answer says
+    why (here the stand-in solve gives nothing: exit 2's NoPlan)."""
+    tq, state = _ci_table_at(rate_deg_s, axis_deg)
+    tried = _recorded(tq, monkeypatch)
+    with pytest.raises(NoPlan, match="of spin axis and .* beyond what a flat-spin plan carries"):
+        tq.query(state, budget_s=100.0)
+    assert tried == ["cold"]
+
+
+@pytest.mark.parametrize(("rate_deg_s", "axis_deg"), [(3.75, 90.0), (4.5, 90.0), (3.5, 120.0), (4.3, 65.0)])
+def test_a_flat_spin_within_what_its_tables_plans_carry_tries_them_first(monkeypatch, rate_deg_s, axis_deg):
+    """Inside the box, and outside it by at most 30° of spin axis and 0.5 °/s (the edges themselves included): the
+    table's plan is re-simulated first and nothing notes a carry."""
+    tq, state = _ci_table_at(rate_deg_s, axis_deg)
+    tried = _recorded(tq, monkeypatch)
+    try:
+        result = tq.query(state, budget_s=100.0)
+        notes = result.notes
+    except NoPlan as exc:  # the table's plan infeasible there and the stand-in solves give none
+        notes = (str(exc),)
+    assert tried[0] == "table plan" and not any("carries" in note for note in notes)
 
 
 @pytest.mark.parametrize(("attitude_deg", "rate_deg_s", "corner_tried"), [(30.0, 0.0, False), (2.0, 0.1, True)])
