@@ -87,24 +87,19 @@ def displacement(point: int, state: TargetState, point_state: TargetState) -> Di
     return Displacement(point, math.degrees(angle), math.degrees(rate))
 
 
-def flat_spin_displacement(point: int | None, rate_axis: Sequence[float],
-                           other_rate_axis: Sequence[float]) -> Displacement:
-    """A flat spin's displacement from another (grid point ``point``'s, or None: the nearest of a grid's box):
-    ``rate_axis`` and ``other_rate_axis`` are each (spin rate [deg/s], spin-axis angle in the orbital x–z plane [deg]);
-    the angle between the axes is taken round the circle."""
-    turn = (float(rate_axis[1]) - float(other_rate_axis[1]) + 180.0) % 360.0 - 180.0
-    return Displacement(point, abs(turn), abs(float(rate_axis[0]) - float(other_rate_axis[0])), FLAT_SPIN)
+def outside_flat_spin_grid(rate_axis: Sequence[float], in_grid_rate_axis: Sequence[float]) -> Displacement:
+    """How far a flat spin lies outside a grid's box: ``rate_axis`` is its (spin rate [deg/s], spin-axis angle in the
+    orbital x–z plane [deg]), ``in_grid_rate_axis`` the nearest in the box; the angle between the axes is taken round
+    the circle."""
+    turn = (float(rate_axis[1]) - float(in_grid_rate_axis[1]) + 180.0) % 360.0 - 180.0
+    return Displacement(None, abs(turn), abs(float(rate_axis[0]) - float(in_grid_rate_axis[0])), FLAT_SPIN)
 
 
 def nearest_displacement(corners: list[int], state: TargetState,
                          point_state: Callable[[int], TargetState]) -> Displacement | None:
-    """The displacement of ``state`` from the nearest of a tumble table's ``corners`` (``point_state``: a grid point's
-    state); None without corners."""
-    return nearest_of([displacement(c, state, point_state(c)) for c in corners])
-
-
-def nearest_of(moves: list[Displacement]) -> Displacement | None:
-    """The nearest of ``moves``: the smallest larger of attitude and rate, each in units of its carry; None if empty."""
+    """The displacement of ``state`` from the nearest of a tumble table's ``corners`` (the larger of attitude and rate,
+    each in units of its carry; ``point_state``: a grid point's state); None without corners."""
+    moves = [displacement(c, state, point_state(c)) for c in corners]
     return min(moves, key=_relative_to_carry, default=None)
 
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from lut.query.carry import Displacement, flat_spin_displacement, nearest_displacement, rate_and_axis
+from lut.query.carry import Displacement, nearest_displacement, outside_flat_spin_grid, rate_and_axis
 from lut.query.corner_stage import FINISH_RESERVE_S, MIN_REFINE_S, Attempt, CornerStage
 from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
 from lut.query.least_violating import violates_less
@@ -186,7 +186,7 @@ class TableQuery:
             nearest = nearest_displacement(corners, state, self.grid.state)
         else:  # how far outside the grid's box the state's flat spin lies (its phase: an exact time shift)
             names = self.grid.axis_names
-            nearest = flat_spin_displacement(None, rate_and_axis(self.grid.family_coordinates(state), names),
+            nearest = outside_flat_spin_grid(rate_and_axis(self.grid.family_coordinates(state), names),
                                              rate_and_axis(project_to_grid(self.grid, state).coords, names))
         return nearest if nearest is not None and nearest.beyond_carry else None
 

@@ -15,9 +15,8 @@ from lut.query.carry import (
     FLAT_SPIN_AXIS_DEG,
     FLAT_SPIN_RATE_DEG_S,
     displacement,
-    flat_spin_displacement,
     nearest_displacement,
-    nearest_of,
+    outside_flat_spin_grid,
 )
 from planner.model.rotation import quat_multiply
 from planner.model.target import TargetState
@@ -89,32 +88,24 @@ def test_the_note_names_the_point_and_both_distances():
     ((2.0, 180.0), (2.5, -180.0), 0.0, 0.5),  # the same axis, a whole turn apart
     ((2.0, 90.0), (2.0, 270.0), 180.0, 0.0),  # the opposite axis: the farthest a spin axis can be
     ((1.2, -40.0), (3.7, 95.0), 135.0, 2.5)])
-def test_a_flat_spins_displacement_is_its_spin_axis_round_the_circle_and_its_rate(here, there, axis_deg, rate_deg_s):
-    move = flat_spin_displacement(4, here, there)
-    assert move.point == 4
+def test_outside_a_flat_spin_grid_is_its_spin_axis_round_the_circle_and_its_rate(here, there, axis_deg, rate_deg_s):
+    move = outside_flat_spin_grid(here, there)
+    assert move.point is None
     assert move.attitude_deg == pytest.approx(axis_deg, abs=1e-9) and move.rate_deg_s == pytest.approx(rate_deg_s)
 
 
 @pytest.mark.parametrize(("axis_deg", "rate_deg_s", "beyond"), [
     (FLAT_SPIN_AXIS_DEG, 0.0, False), (FLAT_SPIN_AXIS_DEG + 1e-6, 0.0, True),
     (0.0, FLAT_SPIN_RATE_DEG_S, False), (0.0, FLAT_SPIN_RATE_DEG_S + 1e-9, True),
-    (FLAT_SPIN_AXIS_DEG, FLAT_SPIN_RATE_DEG_S, False)])
-def test_a_flat_spin_plan_carries_to_the_coarse_cells_middle_and_no_farther(axis_deg, rate_deg_s, beyond):
-    """Exactly half the coarse envelope grid's cell (30°, 0.5 °/s: where its corners answered states) is still
-    tried; a hair beyond is not."""
-    move = flat_spin_displacement(0, (3.0 + rate_deg_s, 90.0 + axis_deg), (3.0, 90.0))
-    assert move.beyond_carry is beyond
-
-
-def test_the_nearest_flat_spin_corner_is_the_nearest_in_units_of_its_carry():
-    """Corner 1: 24° (0.8 of the axis' carry); corner 2: 1° and 0.45 °/s (0.9 of the rate's): 1 is nearer."""
-    moves = [flat_spin_displacement(2, (3.45, 91.0), (3.0, 90.0)), flat_spin_displacement(1, (3.0, 114.0), (3.0, 90.0))]
-    nearest = nearest_of(moves)
-    assert nearest is not None and nearest.point == 1 and not nearest.beyond_carry
-    assert nearest_of([]) is None
+    (FLAT_SPIN_AXIS_DEG, FLAT_SPIN_RATE_DEG_S, False), (0.0, 0.0, False)])
+def test_a_flat_spin_plan_carries_to_half_the_coarse_cell_outside_its_grid_and_no_farther(axis_deg, rate_deg_s,
+                                                                                         beyond):
+    """Exactly half the coarse envelope grid's cell (30°, 0.5 °/s: where its corners answered states) outside the grid
+    is still tried, a hair beyond is not, and inside (0, 0) always."""
+    assert outside_flat_spin_grid((3.0 + rate_deg_s, 90.0 + axis_deg), (3.0, 90.0)).beyond_carry is beyond
 
 
 def test_a_flat_spins_note_says_how_far_outside_the_grid_and_names_its_carry():
-    note = flat_spin_displacement(None, (4.6, 125.0), (4.0, 90.0)).note()
+    note = outside_flat_spin_grid((4.6, 125.0), (4.0, 90.0)).note()
     assert note.startswith("this state is 35.0° of spin axis and 0.60 °/s outside the table's grid")
     assert note.endswith("beyond what a flat-spin plan carries (30°, 0.5 °/s): its plans not tried")
