@@ -5,14 +5,15 @@ A tumble plan (README "How far a plan carries"): a measured attitude or body rat
 spin's phase is an exact time shift, so only its rate and the direction of its spin axis count; inside its grid's box
 its corners are tried as they are (the coarse envelope grid's corners, 60° and 1 °/s apart, answer some states), and
 outside it by more than half that cell they are not: at 20 seeded states that far outside the CI table none of its
-plans verified, and the query lost to the cold plan it ends with (README "A flat-spin table far from the state").
+plans verified, and the query lost to the cold plan it ends with (README "A flat-spin table far from the state"). A
+state far from every flat spin (a tumble given to a flat-spin table) is judged first, as a tumble plan carries.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,6 +63,7 @@ class Displacement:
     attitude_deg: float
     rate_deg_s: float
     limits: CarryLimits = TUMBLE
+    off_family: bool = False  # from the state's nearest flat spin (a tumble given to a flat-spin table)
 
     @property
     def beyond_carry(self) -> bool:
@@ -70,11 +72,14 @@ class Displacement:
 
     def note(self) -> str:
         """The answer's note: the query solved at the state, and why."""
-        lim = self.limits
-        where = (f"the table's nearest plan (point {self.point}) is {self.attitude_deg:.1f}° and "
-                 f"{self.rate_deg_s:.2f} °/s from this state" if self.point is not None else
-                 f"this state is {self.attitude_deg:.1f}° of spin axis and {self.rate_deg_s:.2f} °/s outside the "
-                 "table's grid")
+        lim, far = self.limits, f"{self.attitude_deg:.1f}° and {self.rate_deg_s:.2f} °/s"
+        if self.off_family:
+            where = f"this state is {far} from its nearest flat spin"
+        elif self.point is not None:
+            where = f"the table's nearest plan (point {self.point}) is {far} from this state"
+        else:
+            where = (f"this state is {self.attitude_deg:.1f}° of spin axis and {self.rate_deg_s:.2f} °/s outside the "
+                     "table's grid")
         return (f"{where}, beyond what a {lim.kind} plan carries ({lim.attitude_deg:g}°, {lim.rate_deg_s:g} °/s): its "
                 "plans not tried")
 
@@ -85,6 +90,12 @@ def displacement(point: int, state: TargetState, point_state: TargetState) -> Di
     angle = float(np.linalg.norm(rotation_log(turn)))
     rate = float(np.linalg.norm(np.asarray(state.omega_body_rad_s) - np.asarray(point_state.omega_body_rad_s)))
     return Displacement(point, math.degrees(angle), math.degrees(rate))
+
+
+def off_flat_spin_family(state: TargetState, nearest_flat_spin: TargetState) -> Displacement:
+    """How far ``state`` is from its nearest flat spin (a grid's family member), judged as a tumble plan's carry: a
+    flat spin's plan given a tumbling state is a plan displaced by that attitude and body rate."""
+    return replace(displacement(0, state, nearest_flat_spin), point=None, off_family=True)
 
 
 def outside_flat_spin_grid(rate_axis: Sequence[float], in_grid_rate_axis: Sequence[float]) -> Displacement:

@@ -31,7 +31,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from lut.query.carry import Displacement, nearest_displacement, outside_flat_spin_grid, rate_and_axis
+from lut.query.carry import (
+    Displacement,
+    nearest_displacement,
+    off_flat_spin_family,
+    outside_flat_spin_grid,
+    rate_and_axis,
+)
 from lut.query.corner_stage import FINISH_RESERVE_S, MIN_REFINE_S, Attempt, CornerStage
 from lut.query.interpolation import Candidate, cheapest, consistent_group, mean_of_group
 from lut.query.least_violating import violates_less
@@ -181,14 +187,24 @@ class TableQuery:
     def beyond_carry(self, state: TargetState, corners: list[int]) -> Displacement | None:
         """How far ``state`` is from the table's plans when they cannot carry that far (:mod:`lut.query.carry`), else
         None: a tumble table's, from the nearest of the grid points ``corners`` (None without corners); a flat-spin
-        table's, from its grid's box (None inside it)."""
+        table's, from the state's nearest flat spin and that flat spin from the grid's box (None inside it)."""
         if self.grid.kind == "tumble":
             nearest = nearest_displacement(corners, state, self.grid.state)
-        else:  # how far outside the grid's box the state's flat spin lies (its phase: an exact time shift)
-            names = self.grid.axis_names
-            nearest = outside_flat_spin_grid(rate_and_axis(self.grid.family_coordinates(state), names),
-                                             rate_and_axis(project_to_grid(self.grid, state).coords, names))
+        else:
+            nearest = self._off_flat_spin_grid(state)
         return nearest if nearest is not None and nearest.beyond_carry else None
+
+    def _off_flat_spin_grid(self, state: TargetState) -> Displacement:
+        """How far ``state`` is from a flat-spin table's plans: from its nearest flat spin when beyond what a plan
+        carries from its own state (a tumble), else how far outside the grid's box that flat spin lies (its phase: an
+        exact time shift)."""
+        family = self.grid.family_coordinates(state)
+        off = off_flat_spin_family(state, self.grid.state_at(family))
+        if off.beyond_carry:
+            return off
+        names = self.grid.axis_names
+        return outside_flat_spin_grid(rate_and_axis(family, names),
+                                      rate_and_axis(project_to_grid(self.grid, state).coords, names))
 
     def solved(self, state: TargetState, warm: PlanParameters | None, made: Attempt | None, corners: list[int],
                deadline: Deadline, latency: dict[str, float], refine: bool,

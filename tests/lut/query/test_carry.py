@@ -16,6 +16,7 @@ from lut.query.carry import (
     FLAT_SPIN_RATE_DEG_S,
     displacement,
     nearest_displacement,
+    off_flat_spin_family,
     outside_flat_spin_grid,
 )
 from planner.model.rotation import quat_multiply
@@ -109,3 +110,12 @@ def test_a_flat_spins_note_says_how_far_outside_the_grid_and_names_its_carry():
     note = outside_flat_spin_grid((4.6, 125.0), (4.0, 90.0)).note()
     assert note.startswith("this state is 35.0° of spin axis and 0.60 °/s outside the table's grid")
     assert note.endswith("beyond what a flat-spin plan carries (30°, 0.5 °/s): its plans not tried")
+
+
+def test_off_its_flat_spin_a_state_carries_as_a_tumble_plan_and_the_note_says_from_what():
+    """A tumble given to a flat-spin table: its distance from its nearest flat spin is judged by the tumble's limits
+    (a flat spin's plan at a tumbling state is a plan displaced by that attitude and rate), at their edges."""
+    within = off_flat_spin_family(_turned(CARRY_ATTITUDE_DEG - 1e-6), BASE)
+    beyond = off_flat_spin_family(_turned(5.0, omega_change_deg_s=(0.0, CARRY_RATE_DEG_S + 1e-9, 0.0)), BASE)
+    assert within.point is None and within.off_family and not within.beyond_carry and beyond.beyond_carry
+    assert beyond.note().startswith("this state is 5.0° and 1.00 °/s from its nearest flat spin, beyond what a tumble")

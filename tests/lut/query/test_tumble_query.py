@@ -121,6 +121,27 @@ def test_a_flat_spin_beyond_what_its_tables_plans_carry_is_planned_at_once(monke
     assert tried == ["cold"]
 
 
+@pytest.mark.parametrize(("transverse_deg_s", "tilt_deg", "beyond"), [
+    (2.0, 0.0, True), (0.0, 25.0, True), (0.03, 0.3, False), (0.9, 0.0, False)])
+def test_a_tumble_given_to_a_flat_spin_table_is_planned_at_once_if_far_from_every_flat_spin(
+        monkeypatch, transverse_deg_s, tilt_deg, beyond):
+    """Grid point 0's flat spin (inside the grid) tilted about body x and given a transverse body rate about body x: a
+    general tumble (2 °/s across, or 25° of tilt) is beyond what a plan carries from its own state, an estimator's flat
+    spin (0.3°, 0.03 °/s) and 0.9 °/s across are not."""
+    tq = TableQuery(ROOT / "tests" / "data" / "ci_golden.h5")
+    point = tq.grid.state(0)
+    half = np.radians(tilt_deg) / 2
+    tumbling = TargetState(quat_multiply(point.attitude_wxyz, [np.cos(half), np.sin(half), 0.0, 0.0]),
+                           point.omega_body_rad_s + np.radians([transverse_deg_s, 0.0, 0.0]))
+    tried = _recorded(tq, monkeypatch)
+    try:
+        notes = tq.query(tumbling, budget_s=100.0).notes
+    except NoPlan as exc:  # the stand-in solves give none
+        notes = (str(exc),)
+    assert (tried == ["cold"]) is beyond and (tried[0] == "table plan") is not beyond
+    assert any("from its nearest flat spin, beyond what a tumble plan carries" in n for n in notes) is beyond
+
+
 @pytest.mark.parametrize(("rate_deg_s", "axis_deg"), [(3.75, 90.0), (4.5, 90.0), (3.5, 120.0), (4.3, 65.0)])
 def test_a_flat_spin_within_what_its_tables_plans_carry_tries_them_first(monkeypatch, rate_deg_s, axis_deg):
     """Inside the box, and outside it by at most 30° of spin axis and 0.5 °/s (the edges themselves included): the
