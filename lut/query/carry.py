@@ -84,8 +84,9 @@ class Displacement:
                 "plans not tried")
 
 
-def displacement(point: int, state: TargetState, point_state: TargetState) -> Displacement:
-    """``state``'s displacement from tumble grid point ``point`` (whose state is ``point_state``); q and −q alike."""
+def displacement(point: int | None, state: TargetState, point_state: TargetState) -> Displacement:
+    """``state``'s displacement from tumble grid point ``point`` (whose state is ``point_state``; None: a state that is
+    no grid point's); q and −q alike."""
     turn = quat_to_matrix(point_state.attitude_wxyz).T @ quat_to_matrix(state.attitude_wxyz)
     angle = float(np.linalg.norm(rotation_log(turn)))
     rate = float(np.linalg.norm(np.asarray(state.omega_body_rad_s) - np.asarray(point_state.omega_body_rad_s)))
@@ -95,7 +96,7 @@ def displacement(point: int, state: TargetState, point_state: TargetState) -> Di
 def off_flat_spin_family(state: TargetState, nearest_flat_spin: TargetState) -> Displacement:
     """How far ``state`` is from its nearest flat spin (a grid's family member), judged as a tumble plan's carry: a
     flat spin's plan given a tumbling state is a plan displaced by that attitude and body rate."""
-    return replace(displacement(0, state, nearest_flat_spin), point=None, off_family=True)
+    return replace(displacement(None, state, nearest_flat_spin), off_family=True)
 
 
 def outside_flat_spin_grid(rate_axis: Sequence[float], in_grid_rate_axis: Sequence[float]) -> Displacement:
