@@ -198,13 +198,12 @@ class TableQuery:
         """How far ``state`` is from a flat-spin table's plans: from its nearest flat spin when beyond what a plan
         carries from its own state (a tumble), else how far outside the grid's box that flat spin lies (its phase: an
         exact time shift)."""
-        family = self.grid.family_coordinates(state)
-        off = off_flat_spin_family(state, self.grid.state_at(family))
+        projection = project_to_grid(self.grid, state)
+        off = off_flat_spin_family(state, self.grid.state_at(projection.family))
         if off.beyond_carry:
             return off
         names = self.grid.axis_names
-        return outside_flat_spin_grid(rate_and_axis(family, names),
-                                      rate_and_axis(project_to_grid(self.grid, state).coords, names))
+        return outside_flat_spin_grid(rate_and_axis(projection.family, names), rate_and_axis(projection.coords, names))
 
     def solved(self, state: TargetState, warm: PlanParameters | None, made: Attempt | None, corners: list[int],
                deadline: Deadline, latency: dict[str, float], refine: bool,

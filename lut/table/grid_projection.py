@@ -21,10 +21,12 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class GridProjection:
-    """Where on the grid a state is answered: ``coords`` (n_axes,) [deg, deg/s], and why they differ from the
-    state's own coordinates (empty when the state is on the grid)."""
+    """Where on the grid a state is answered: ``coords`` (n_axes,) [deg, deg/s], ``family`` the coordinates of the
+    state's nearest family member before they were clamped into the grid, and why ``coords`` differ from the state's
+    own coordinates (empty when the state is on the grid)."""
 
     coords: Array
+    family: Array
     notes: tuple[str, ...] = ()
 
 
@@ -45,4 +47,4 @@ def project_to_grid(grid: Grid, state: TargetState) -> GridProjection:
         clamped[i] = min(max(coords[i], ax.min), ax.max)
         notes.append(f"outside the grid: {ax.name} = {coords[i]:.10g} not in [{ax.min:.10g}, {ax.max:.10g}]; "
                      f"the table answers at {clamped[i]:.10g}")
-    return GridProjection(clamped, tuple(notes))
+    return GridProjection(clamped, np.array(coords, dtype=float), tuple(notes))

@@ -34,6 +34,7 @@ class RatePeak:
     """One joint's largest rate between two bounded instants of the approach."""
 
     joint: int  # 0-based
+    stretch: int  # between the NLP's bounded instants stretch − 1 and stretch (0: before the first)
     t_s: float  # since the approach's start [s]
     rate_rad_s: float  # signed [rad/s]
     ratio: float  # |rate| over the joint's limit
@@ -51,7 +52,7 @@ def rate_peaks(problem: ApproachProblem, samples: PhaseSamples, above: float = R
         for j, i in enumerate(worst):
             rate = float(samples.qd[i, j])
             if abs(rate) > above * qd_max[j]:
-                peaks.append(RatePeak(j, float(samples.t[i]), rate, abs(rate) / qd_max[j]))
+                peaks.append(RatePeak(j, int(s), float(samples.t[i]), rate, abs(rate) / qd_max[j]))
     return sorted(peaks, key=lambda p: -p.ratio)
 
 
@@ -69,8 +70,7 @@ def lowered_rates(problem: ApproachProblem, samples: PhaseSamples,
     bound = backoff.JOINT_VELOCITY_FRACTION * problem.robot.qd_max
     for p in peaks:
         excess = abs(p.rate_rad_s) - bound[p.joint]
-        stretch = int(np.searchsorted(times, p.t_s, side="left"))
-        for row in (r for r in (stretch - 1, stretch) if 0 <= r < len(times)):
+        for row in (r for r in (p.stretch - 1, p.stretch) if 0 <= r < len(times)):
             if p.rate_rad_s > 0:  # the box keeps 0: the row's rate may fall to rest, never be pushed across
                 upper[row, p.joint] = min(upper[row, p.joint], max(at_rows[row, p.joint] - excess, 0.0))
             else:
