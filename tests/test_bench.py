@@ -13,6 +13,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,14 @@ sys.path.insert(0, str(ROOT / "scripts"))  # the benchmark's sections are script
 from bench_sections import carry, coverage, coverage_tables  # noqa: E402
 from bench_sections.coverage_runs import CliRun, failure_reasons, run_record  # noqa: E402
 from bench_sections.envelope import EnvelopeState, flat_spin_state, major_axis_body, tumble_state, wxyz  # noqa: E402
-from bench_sections.failure_kinds import FailureKind, cut_by_the_budget, failure_kind  # noqa: E402
+from bench_sections.failure_kinds import (  # noqa: E402
+    EARLIEST_COLD_START_S,
+    PROBLEM_BUILD_S,
+    FailureKind,
+    cut_by_the_budget,
+    failure_kind,
+    record_failure_kind,
+)
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 LIBRARIES = ("numpy", "scipy", "pin", "casadi", "python-fcl", "h5py", "joblib", "distributed", "lutgen")
@@ -389,6 +397,38 @@ def _check(name: str, phase: str | None) -> dict[str, Any]:
 ])
 def test_failure_kind_of_given_reasons(reasons, kind):
     assert failure_kind(reasons) is kind
+
+
+def test_the_earliest_cold_start_is_the_planners_own_floor_after_the_problems_build():
+    from planner.deadline import Deadline
+
+    observed = Deadline.after(100.0).observed(time.monotonic() - PROBLEM_BUILD_S)
+    assert observed.earliest_start_s() == EARLIEST_COLD_START_S == 7.0
+
+
+@pytest.mark.parametrize(("windows", "kind"), [
+    ([[0.0, 6.0]], FailureKind.ONLY_TOO_EARLY),  # the scan's last reached start delay 6 s: before 7 s
+    ([[0.0, 0.0]], FailureKind.ONLY_TOO_EARLY),
+    ([[0.0, 2.0], [4.0, 6.0]], FailureKind.ONLY_TOO_EARLY),
+    ([[0.0, EARLIEST_COLD_START_S]], FailureKind.NO_GRASP_HELD),  # a start a cold plan can take: the plan's failure
+    ([[0.0, 2.0], [40.0, 60.0]], FailureKind.NO_GRASP_HELD),  # reachable later too
+    ([], FailureKind.NO_GRASP_HELD),  # no window known to be reached: what the plan failed
+    (None, FailureKind.NO_GRASP_HELD),  # not known (a query's record)
+])
+def test_a_state_reachable_only_before_a_cold_plan_can_start_fails_for_that(windows, kind):
+    no_grasp = [_check("grasp_position", "grasp"), _check("collision", "approach")]
+    assert failure_kind(no_grasp, None, windows) is kind
+    assert record_failure_kind({"reasons": no_grasp, "reach_windows_s": windows}) is kind
+
+
+def test_reachable_only_too_early_comes_after_what_says_more():
+    early = [[0.0, 2.0]]
+    assert failure_kind([{"reason": "over budget", "detail": "130 s"}], None, early) is FailureKind.OVER_BUDGET
+    assert failure_kind([{"reason": "out of reach", "detail": "…"}], None, early) is FailureKind.OUT_OF_REACH
+    assert failure_kind([{"reason": "exit 70", "detail": "…"}], None, early) is FailureKind.BUG
+    braking = [_check("grasp_torque", "stabilization")]
+    assert failure_kind(braking, None, early) is FailureKind.ONLY_TOO_EARLY
+    assert failure_kind([], None, early) is None  # feasible: no failure
 
 
 def test_a_query_out_of_reach_is_out_of_reach_whatever_its_table_plan_fails():

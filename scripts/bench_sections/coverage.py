@@ -23,7 +23,7 @@ from bench_sections.envelope import (
     major_axis_body,
     tumble_state,
 )
-from bench_sections.failure_kinds import cut_by_the_budget, failure_kind
+from bench_sections.failure_kinds import cut_by_the_budget, record_failure_kind
 from bench_sections.reach_windows import with_windows
 
 SEED_SALT = 20  # the coverage states' seed is (--seed, issue 20, kind)
@@ -69,8 +69,8 @@ def summary(records: list[dict[str, Any]]) -> dict[str, Any]:
     return {"states": len(records), "feasible_on_time": ok, "feasible_fraction": ok / len(records),
             "wall_s": stats_p95([r["wall_s"] for r in records]), "reasons": dict(tally.most_common()),
             "failures_by_first_reason": dict(first.most_common()),
-            "failures_by_kind": dict(Counter(failure_kind(r["reasons"], r.get("refine_failure")).value
-                                             for r in records if r["reasons"]).most_common()),
+            "failures_by_kind": dict(Counter(record_failure_kind(r).value for r in records
+                                             if r["reasons"]).most_common()),
             "cut_by_the_budget": sum(cut_by_the_budget(r["reasons"]) for r in records),
             "over_budget": sum(any(x["reason"] == OVER_BUDGET for x in r["reasons"]) for r in records),
             "killed": sum(r["exit_code"] is None for r in records), "reach_edge": reach_edge(records),

@@ -1,13 +1,16 @@
 """What kind of failure a coverage run is (issue 20: every failure explained by kind, not by a timeout), from the
-reasons its record names (:func:`bench_sections.coverage_runs.failure_reasons`)."""
+reasons its record names (:func:`bench_sections.coverage_runs.failure_reasons`) and, for a cold plan, when its state's
+grasp is within reach (:mod:`bench_sections.reach_windows`)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from enum import StrEnum
 from typing import Any
 
 from bench_sections.coverage_runs import BUDGET_RAN_OUT, EXIT_MEANINGS, LATE_START, OVER_BUDGET
+from planner.deadline import FLOOR_STEP_S, START_LEAD_S
 
 OUT_OF_REACH = "out of reach"
 OUT_OF_REACH_PROVEN = "out of reach (proven)"
@@ -16,6 +19,10 @@ NO_PLAN = "no plan"
 BUGS = frozenset(meaning for code, meaning in EXIT_MEANINGS.items() if code != 2)
 # the phases of a failed check (failed_checks) that lie before the braking: what no braking can change
 BEFORE_THE_GRASP = frozenset({"approach", "tracking", "grasp"})
+# the earliest approach start [s after the observation] a cold live plan can take: its problems' build (1.3 s, the wall
+# time of an out-of-reach answer) plus START_LEAD_S (5 s), rounded up to a whole FLOOR_STEP_S (planner.deadline)
+PROBLEM_BUILD_S = 1.3
+EARLIEST_COLD_START_S = math.ceil((PROBLEM_BUILD_S + START_LEAD_S) / FLOOR_STEP_S) * FLOOR_STEP_S
 
 
 class FailureKind(StrEnum):
@@ -27,16 +34,21 @@ class FailureKind(StrEnum):
     OUT_OF_REACH_PROVEN = "out of reach (proven)"
     OUT_OF_REACH = "out of reach"  # the scan of meeting times reached none: refused before solving
     NO_PLAN = "no plan"  # a query whose solves gave no plan and whose table had none near the state
+    # within reach only at start delays before EARLIEST_COLD_START_S: gone before a cold plan can answer
+    ONLY_TOO_EARLY = "reachable only too early"
     NO_GRASP_HELD = "no grasp held"  # verify refuses the plan before its grasp: the approach, the tracking, the grasp
     BRAKING = "braking"  # the grasp held; every failed check lies in the braking, from the grasp on
     LATE_START = "late start"  # verified feasible, but its approach was to start before its answer came
     UNEXPLAINED = "unexplained"  # infeasible, and no failed check says where
 
 
-def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None = None) -> FailureKind | None:
-    """The kind of a run's failure from its ``reasons`` (None: no reason, the run gave a verified plan on time) and,
-    for a query, why its solve did not finish: a query answers a state out of reach with its table's plan, whose
-    failed checks are the table's, not the state's."""
+def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None = None,
+                 reach_windows_s: Sequence[Sequence[float]] | None = None) -> FailureKind | None:
+    """The kind of a run's failure from its ``reasons`` (None: no reason, the run gave a verified plan on time); for a
+    query, why its solve did not finish (a query answers a state out of reach with its table's plan, whose failed
+    checks are the table's, not the state's); for a cold plan, its state's ``reach_windows_s`` (the start delays [s]
+    the scan reached, as intervals; None: not known), all before a cold plan can start (:data:`EARLIEST_COLD_START_S`)
+    being the failure's kind whatever the plan then failed."""
     if not reasons:
         return None
     names = {r["reason"] for r in reasons}
@@ -51,6 +63,8 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
         return FailureKind.OUT_OF_REACH
     if NO_PLAN in names:
         return FailureKind.NO_PLAN
+    if reach_windows_s and max(last for _, last in reach_windows_s) < EARLIEST_COLD_START_S:
+        return FailureKind.ONLY_TOO_EARLY
     if phases & BEFORE_THE_GRASP:
         return FailureKind.NO_GRASP_HELD
     if phases == {"stabilization"}:
@@ -58,6 +72,12 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
     if names == {LATE_START} or names == {LATE_START, BUDGET_RAN_OUT}:
         return FailureKind.LATE_START
     return FailureKind.UNEXPLAINED
+
+
+def record_failure_kind(record: Mapping[str, Any]) -> FailureKind | None:
+    """:func:`failure_kind` of a coverage run's record (its reasons, a query's refine failure, a plan's reach
+    windows)."""
+    return failure_kind(record["reasons"], record.get("refine_failure"), record.get("reach_windows_s"))
 
 
 def cut_by_the_budget(reasons: Sequence[dict[str, Any]]) -> bool:

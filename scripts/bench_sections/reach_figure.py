@@ -44,17 +44,15 @@ def draw_outcomes_by_reach(runs: dict[str, list[dict[str, Any]]], folder: Path, 
     """``coverage_reach.png`` in ``folder`` (made if missing): one row per kind, each state at its reach slack [m]
     (``reach_slack_m``), marked by its outcome (feasible, or its failure kind); ``seeds`` names the states' seeds in
     the title; the path."""
-    from bench_sections.failure_kinds import failure_kind
-
     folder.mkdir(parents=True, exist_ok=True)
     fig = new_figure(11.0, 1.2 + 1.1 * len(runs))
     ax = fig.subplots()
-    found = {_outcome(r, failure_kind) for records in runs.values() for r in records}
+    found = {_outcome(r) for records in runs.values() for r in records}
     outcomes = sorted(found, key=lambda o: (o != "feasible", o))  # one marker and colour each, feasible first
     labelled: set[str] = set()
     for k, records in enumerate(runs.values()):
         for j, outcome in enumerate(outcomes):
-            slack = [r["reach_slack_m"] for r in records if _outcome(r, failure_kind) == outcome]
+            slack = [r["reach_slack_m"] for r in records if _outcome(r) == outcome]
             if not slack:
                 continue
             row = k + 0.6 * (j / max(1, len(outcomes) - 1) - 0.5)  # one lane per outcome within the kind's row
@@ -74,9 +72,11 @@ MARKERS = ("o", "x", "^", "s", "v", "D", "P")
 COLOURS = ("0.55", "tab:red", "tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown")
 
 
-def _outcome(record: dict[str, Any], kind_of: Any) -> str:
+def _outcome(record: dict[str, Any]) -> str:
     """``feasible`` or the run's failure kind."""
+    from bench_sections.failure_kinds import record_failure_kind
+
     if record["feasible_on_time"]:
         return "feasible"
-    kind = kind_of(record["reasons"], record.get("refine_failure"))
+    kind = record_failure_kind(record)
     return "failed" if kind is None else kind.value

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from bench_sections.common import load_scenario_named
 from bench_sections.envelope import EnvelopeState
-from bench_sections.failure_kinds import FailureKind, failure_kind
+from bench_sections.failure_kinds import FailureKind, record_failure_kind
 from lut.output.plot_style import new_figure, save_figure
 
 if TYPE_CHECKING:
@@ -60,7 +60,7 @@ def draw_failure_windows(runs: dict[str, list[dict[str, Any]]], folder: Path, se
     as bars over the start-delay window, a tick where its plan answered (the wall time: the approach must start
     after it) and a dot where its answer's approach started; None when there is no such failure."""
     rows = [(kind, i, r) for kind, records in runs.items() for i, r in enumerate(records)
-            if "reach_windows_s" in r and failure_kind(r["reasons"], r.get("refine_failure")) not in WITHOUT_WINDOWS]
+            if "reach_windows_s" in r and record_failure_kind(r) not in WITHOUT_WINDOWS]
     if not rows:
         return None
     folder.mkdir(parents=True, exist_ok=True)
@@ -72,7 +72,7 @@ def draw_failure_windows(runs: dict[str, list[dict[str, Any]]], folder: Path, se
         ax.plot([r["wall_s"]], [y], marker="|", markersize=12, color="black")
         if r.get("start_delay_s") is not None:
             ax.plot([r["start_delay_s"]], [y], marker="o", markersize=5, color="tab:red")
-    labels = [f"{kind} {i}: {failure_kind(r['reasons'], r.get('refine_failure')).value}" for kind, i, r in rows]
+    labels = [f"{kind} {i}: {record_failure_kind(r).value}" for kind, i, r in rows]
     ax.set_yticks(range(len(rows)), labels, fontsize=7)
     ax.invert_yaxis()
     ax.set_xlabel("after the observation [s]: grey, the meeting times the scan reached; |, the plan's answer; "
