@@ -690,8 +690,10 @@ def test_carry_measures_every_displacement_of_the_coverage_kinds(bench):
     kinds = [k for k in r if k.startswith("scenario_")]
     assert kinds == ["scenario_II_flat_spin"] and r["states_per_kind"] == 1
     entry = r["scenario_II_flat_spin"]
-    assert entry["feasible_plans"] == 0 and entry["largest_attitude_deg"] is None
-    assert len(entry["steps"]) == len(r["attitude_steps_deg"]) + len(r["rate_steps_deg_s"])
+    assert entry["feasible_plans"] == 0
+    assert entry["largest_spin_axis_deg"] is None and entry["largest_rate_deg_s"] is None
+    assert "largest_attitude_deg" not in entry  # a flat spin is carried along its family
+    assert len(entry["steps"]) == len(r["spin_axis_steps_deg"]) + len(r["spin_rate_steps_deg_s"])
     assert all(d["plans"] == 0 and d["as_is"] is None for d in entry["steps"].values())
 
 
@@ -731,3 +733,38 @@ def test_the_largest_carry_stops_at_the_first_displacement_below_the_bar():
     assert carry.largest_carry(entry, "attitude_deg") == 5.0  # 20° passing again does not count: 10° did not
     assert carry.largest_carry(entry, "rate_deg_s") is None
     assert carry.largest_carry({"steps": {"rate_deg_s 0.25": {"repaired": None}}}, "rate_deg_s") is None
+
+
+@pytest.mark.parametrize(("turn_deg", "rate_deg_s"), [(30.0, 0.0), (-45.0, 0.0), (180.0, 0.0), (0.0, 0.5),
+                                                      (0.0, -1.0), (0.0, 0.0)])
+def test_a_flat_spin_displaced_along_its_family_is_that_far_in_spin_axis_and_rate(turn_deg, rate_deg_s):
+    """Read back by the grid's own coordinates (rate, spin axis, phase): the other coordinates unchanged."""
+    from lut.table.grid import Grid
+    from lut.table.grid_config import load_grid
+    from planner.config.scenario import load_scenario
+
+    config = load_grid(ROOT / "configs/grids/envelope_flat_spin_II.toml")
+    sc = load_scenario(config.scenario_path)
+    grid = Grid(config, sc.target.inertia_body_kg_m2, sc.target_state.as_state())
+    state = grid.state_at([2.7, 110.0, 250.0])
+    moved = carry.flat_spin_displaced(state, turn_deg, rate_deg_s)
+    before, after = grid.coordinates_of_state(state), grid.coordinates_of_state(moved)  # refuses a non-flat spin
+    delta = after - before
+    delta[1:] = (delta[1:] + 180.0) % 360.0 - 180.0
+    np.testing.assert_allclose(delta, [rate_deg_s, (turn_deg + 180.0) % 360.0 - 180.0, 0.0], atol=1e-9)
+
+
+@pytest.mark.parametrize(("rate_from", "rate_to"), [(3.0, 3.5), (3.0, 2.0), (1.2, 1.0), (2.5, 2.5)])
+def test_a_flat_spin_plan_carried_to_another_rate_meets_the_target_at_the_same_spin_angle(rate_from, rate_to):
+    from planner.config.scenario import load_scenario
+    from planner.plan_parameters import ApproachParameters, PlanParameters
+
+    sc = load_scenario(ROOT / "configs/scenarios/scenario_II.toml")
+    tau = 40.0
+    plan = PlanParameters(ApproachParameters(np.zeros(4), np.zeros(2), tau, np.zeros((3, 7))), np.zeros(5))
+    moved = carry.carried_to_rate(plan, sc, rate_from, rate_to)
+    meets_before = rate_from * (tau + sc.phases.approach_s)  # spin angle swept by the meeting [deg]
+    meets_after = rate_to * (moved.approach.start_delay_s + sc.phases.approach_s)
+    assert abs((meets_after - meets_before + 180.0) % 360.0 - 180.0) < 1e-9
+    earliest, latest = sc.phases.start_delay_window_s
+    assert earliest <= moved.approach.start_delay_s <= latest

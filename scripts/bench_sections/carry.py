@@ -4,13 +4,15 @@ A table answers a state between its points with a neighbour's plan (interpolated
 and verified at the state; where it fails, the query solves. So a grid spacing is useful only where a plan still
 verifies half a spacing away. For each of the coverage section's seeded states (``--coverage-states``; the kinds of
 ``--coverage-kinds``, default the two general tumbles) a cold plan is made in process under the coverage budget;
-each feasible plan is then re-simulated at states displaced from its own by an attitude rotation of δθ about a
-seeded random axis (body frame, composed on the right), or by a body-rate change of δω along that axis, and verified
-densely: *as is*, and *repaired* as the query repairs a plan that fails only from its grasp on (its stabilization
-re-solved warm at the grasp it reaches). Per kind and displacement: the fraction of plans that still verify, and
-the failing checks tallied.
+each feasible plan is then re-simulated at displaced states and verified densely: *as is*, and *repaired* as the
+query repairs a plan that fails only from its grasp on (its stabilization re-solved warm at the grasp it reaches).
+A tumble's plan is displaced by an attitude rotation of δθ about a seeded random axis (body frame, composed on the
+right), or by a body-rate change of δω along that axis; a flat spin's along its family, as a flat-spin table
+carries it: its spin axis turned by δα in the orbital x–z plane (the phase kept; the plan unchanged), or its spin
+rate moved by δr (the plan's start moved so that it meets the target at the same spin angle,
+:func:`lut.table.symmetry.start_delay_shift_s`). Per kind and displacement: the fraction of plans that still
+verify, and the failing checks tallied.
 """
-
 from __future__ import annotations
 
 import sys
@@ -21,10 +23,15 @@ import numpy as np
 
 from bench_sections.common import Settings, load_scenario_named
 from bench_sections.coverage import KINDS, kind_states
+from bench_sections.envelope import FLAT_SPIN_RATE_DEG_S
 
 SEED_SALT = 2020  # the displacement directions' seed is (--seed, this, kind)
 ATTITUDE_STEPS_DEG = (2.5, 5.0, 10.0, 20.0, 45.0)
 RATE_STEPS_DEG_S = (0.25, 0.5, 1.0, 2.0)
+# a flat spin's: its spin axis in the orbital x–z plane [deg] and its spin rate [deg/s] (the flat-spin carry limits of
+# lut.query.carry are 30° and 0.5 °/s outside a grid)
+SPIN_AXIS_STEPS_DEG = (5.0, 10.0, 20.0, 30.0, 45.0)
+SPIN_RATE_STEPS_DEG_S = (0.125, 0.25, 0.5, 1.0)
 DEFAULT_KINDS = ("scenario_I_tumble", "scenario_II_tumble")
 CARRY_BAR = 0.9  # a spacing is useful where at least this fraction of plans still verify half a spacing away
 
@@ -47,6 +54,33 @@ def displaced(state: Any, attitude_deg: float, rate_deg_s: float, axis: np.ndarr
     return TargetState(np.array([qw, qx, qy, qz]), state.omega_body_rad_s + np.radians(rate_deg_s) * axis)
 
 
+def flat_spin_displaced(state: Any, spin_axis_deg: float, rate_deg_s: float) -> Any:
+    """``state`` (a flat spin) with its spin axis turned by ``spin_axis_deg`` about the orbital y axis (from α to
+    α + ``spin_axis_deg`` in the x–z plane, the phase kept) and its spin rate moved by ``rate_deg_s`` (its axis
+    kept)."""
+    from scipy.spatial.transform import Rotation
+
+    from planner.model.target_state import TargetState
+
+    w, x, y, z = state.attitude_wxyz
+    about_y = Rotation.from_rotvec(np.radians(-spin_axis_deg) * np.array([0.0, 1.0, 0.0]))  # orbital frame: on the left
+    turned = about_y * Rotation.from_quat([x, y, z, w])
+    qx, qy, qz, qw = turned.as_quat()
+    omega = np.asarray(state.omega_body_rad_s, dtype=float)
+    rate = float(np.linalg.norm(omega))
+    return TargetState(np.array([qw, qx, qy, qz]), omega * (rate + np.radians(rate_deg_s)) / rate)
+
+
+def carried_to_rate(parameters: Any, scenario: Any, rate_from_deg_s: float, rate_deg_s: float) -> Any:
+    """A flat spin's plan made at ``rate_from_deg_s`` carried to ``rate_deg_s`` [deg/s] as a flat-spin table carries it:
+    its start moved so that it meets the target at the same spin angle, by whole turns into the start-delay window."""
+    from lut.table.symmetry import start_delay_shift_s
+
+    meeting_s = parameters.approach.start_delay_s + scenario.phases.approach_s
+    shift_s = start_delay_shift_s(0.0, 0.0, rate_deg_s, rate_from_deg_s=rate_from_deg_s, meeting_s=meeting_s)
+    return parameters.shifted_in_time(shift_s, 360.0 / rate_deg_s, scenario.phases.start_delay_window_s)
+
+
 def carried(planner: Any, state: Any, parameters: Any) -> dict[str, Any]:
     """The plan of ``parameters`` re-simulated and verified at ``state``; repaired as a query repairs it."""
     from lut.query.stabilization_repair import repaired_plan
@@ -59,20 +93,52 @@ def carried(planner: Any, state: Any, parameters: Any) -> dict[str, Any]:
             "failed": [c.name for c in report.checks.values() if not c.passed]}
 
 
+def kind_steps(kind: Any) -> list[tuple[str, float]]:
+    """The displacements ``(axis, size)`` a plan of ``kind`` is carried by: a tumble's in attitude [deg] and body
+    rate [deg/s]; a flat spin's along its family, spin axis [deg] and spin rate [deg/s]."""
+    if kind.motion == "flat_spin":
+        return [("spin_axis_deg", d) for d in SPIN_AXIS_STEPS_DEG] + [("rate_deg_s", d) for d in SPIN_RATE_STEPS_DEG_S]
+    return [("attitude_deg", d) for d in ATTITUDE_STEPS_DEG] + [("rate_deg_s", d) for d in RATE_STEPS_DEG_S]
+
+
+def _direction(kind: Any, rng: np.random.Generator) -> Any:
+    """A state's seeded direction of displacement: a tumble's body axis (unit), a flat spin's sense of turning its
+    spin axis (±1)."""
+    return float(rng.choice([-1.0, 1.0])) if kind.motion == "flat_spin" else _unit(rng)
+
+
+def _displacements(kind: Any, state: Any, parameters: Any, scenario: Any, direction: Any) -> list[tuple[str, Any, Any]]:
+    """``(step key, displaced state, the plan's parameters carried there)`` for each of :func:`kind_steps`; a flat
+    spin's rate moves towards the middle of the envelope's rates, so that it stays within them."""
+    out = []
+    rate = float(np.degrees(np.linalg.norm(state.omega_body_rad_s)))
+    toward = -1.0 if rate > float(np.mean(FLAT_SPIN_RATE_DEG_S)) else 1.0
+    for name, d in kind_steps(kind):
+        key = f"{name} {d:g}"
+        if kind.motion != "flat_spin":
+            turn, moved = (d, 0.0) if name == "attitude_deg" else (0.0, d)
+            out.append((key, displaced(state, turn, moved, direction), parameters))
+        elif name == "spin_axis_deg":
+            out.append((key, flat_spin_displaced(state, direction * d, 0.0), parameters))
+        else:
+            out.append((key, flat_spin_displaced(state, 0.0, toward * d),
+                        carried_to_rate(parameters, scenario, rate, rate + toward * d)))
+    return out
+
+
 def kind_carry(kind: Any, n: int, seed: int, budget_s: float) -> dict[str, Any]:
     """One kind: ``n`` cold plans (each within ``budget_s`` [s]), each feasible one carried to every displacement."""
     from planner.deadline import Deadline
     from planner.plan import OutOfReach, Planner
     from planner.verify.verifier import verify
 
-    planner = Planner(load_scenario_named(kind.scenario))
+    scenario = load_scenario_named(kind.scenario)
+    planner = Planner(scenario)
     rng = np.random.default_rng([seed, SEED_SALT, KINDS.index(kind)])
-    steps = [("attitude_deg", d, d, 0.0) for d in ATTITUDE_STEPS_DEG]
-    steps += [("rate_deg_s", d, 0.0, d) for d in RATE_STEPS_DEG_S]
-    runs: dict[str, list[dict[str, Any]]] = {f"{name} {d:g}": [] for name, d, _, _ in steps}
+    runs: dict[str, list[dict[str, Any]]] = {f"{name} {d:g}": [] for name, d in kind_steps(kind)}
     planned = 0
     for i, s in enumerate(kind_states(kind, n, seed)):
-        axis = _unit(rng)  # drawn for every state, so the directions do not depend on which plans are feasible
+        direction = _direction(kind, rng)  # drawn for every state: the directions do not depend on which plans hold
         state = s.target_state()
         try:
             plan = planner.plan(state, deadline=Deadline.after(budget_s))
@@ -81,14 +147,17 @@ def kind_carry(kind: Any, n: int, seed: int, budget_s: float) -> dict[str, Any]:
         held = []
         if plan is not None and verify(plan).feasible:
             planned += 1
-            for name, d, att, rate in steps:
-                run = carried(planner, displaced(state, att, rate, axis), plan.parameters)
-                runs[f"{name} {d:g}"].append(run)
-                held.append(f"{d:g} {'yes' if run['repaired'] else 'no'}")
+            for key, moved, parameters in _displacements(kind, state, plan.parameters, scenario, direction):
+                run = carried(planner, moved, parameters)
+                runs[key].append(run)
+                held.append(f"{key} {'yes' if run['repaired'] else 'no'}")
         print(f"bench: carry {kind.name} state {i + 1}/{n}: "
-              f"{'carried (attitude °, rate °/s): ' + ', '.join(held) if held else 'no feasible plan'}",
-              file=sys.stderr, flush=True)
-    return {"states": n, "feasible_plans": planned, "steps": {key: _digest(r) for key, r in runs.items()}}
+              f"{'carried: ' + ', '.join(held) if held else 'no feasible plan'}", file=sys.stderr, flush=True)
+    entry: dict[str, Any] = {"states": n, "feasible_plans": planned,
+                             "steps": {key: _digest(r) for key, r in runs.items()}}
+    for name in dict.fromkeys(name for name, _ in kind_steps(kind)):
+        entry[f"largest_{name}"] = largest_carry(entry, name)
+    return entry
 
 
 def _digest(runs: list[dict[str, Any]]) -> dict[str, Any]:
@@ -117,12 +186,11 @@ def carry(settings: Settings) -> dict[str, Any]:
     c = settings.coverage
     names = c.kinds or DEFAULT_KINDS
     out: dict[str, Any] = {"states_per_kind": c.states, "seed": settings.seed, "carry_bar": CARRY_BAR,
-                           "attitude_steps_deg": list(ATTITUDE_STEPS_DEG), "rate_steps_deg_s": list(RATE_STEPS_DEG_S)}
+                           "attitude_steps_deg": list(ATTITUDE_STEPS_DEG), "rate_steps_deg_s": list(RATE_STEPS_DEG_S),
+                           "spin_axis_steps_deg": list(SPIN_AXIS_STEPS_DEG),
+                           "spin_rate_steps_deg_s": list(SPIN_RATE_STEPS_DEG_S)}
     for kind in KINDS:
         if kind.name not in names:
             continue
-        entry = kind_carry(kind, c.states, settings.seed, c.budget_s)
-        entry["largest_attitude_deg"] = largest_carry(entry, "attitude_deg")
-        entry["largest_rate_deg_s"] = largest_carry(entry, "rate_deg_s")
-        out[kind.name] = entry
+        out[kind.name] = kind_carry(kind, c.states, settings.seed, c.budget_s)
     return out

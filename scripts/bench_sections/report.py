@@ -168,14 +168,17 @@ def _reach(r: dict[str, Any]) -> tuple[str, list[Row]]:
     return f"reach ({r['states_per_kind']} states per kind, the scan of meeting times only)", rows
 
 
+UNITS = {"largest_attitude_deg": "° attitude", "largest_rate_deg_s": "°/s rate", "largest_spin_axis_deg": "° spin axis"}
+
+
 def _carry(r: dict[str, Any]) -> tuple[str, list[Row]]:
     rows: list[Row] = []
     for kind, entry in r.items():
         if not (isinstance(entry, dict) and "steps" in entry):
             continue
+        carries = ", ".join(f"{entry[key]} {UNITS[key]}" for key in entry if key.startswith("largest_"))
         rows.append((f"{kind}", f"{entry['feasible_plans']}/{entry['states']} cold plans feasible; carried ≥ "
-                                f"{r['carry_bar']:g} up to {entry['largest_attitude_deg']} ° attitude, "
-                                f"{entry['largest_rate_deg_s']} °/s rate"))
+                                f"{r['carry_bar']:g} up to {carries}"))
         for step, d in entry["steps"].items():
             value = "n/a" if d["as_is"] is None else f"as is {d['as_is']:.2f}, repaired {d['repaired']:.2f}"
             rows.append((f"  {step}", f"{value} of {d['plans']} plans"))
