@@ -41,8 +41,9 @@ second the ``*_wide`` variants') or a longer window, and how many of them the re
 ``--reach-plot DIR`` draws the proof's slack over the window of each state out of reach.
 
 ``carry`` (issue 20) plans the coverage section's seeded states cold in process (default kinds: the two general
-tumbles) and re-verifies each feasible plan at states displaced in attitude (2.5-45°) and body rate (0.25-2 °/s):
-how far a table's plan carries, so what grid spacing a table needs. Alone:
+tumbles) and re-verifies each feasible plan at displaced states, a tumble's in attitude (2.5-45°) and body rate
+(0.25-2 °/s), a flat spin's along its family, in spin axis (5-45°) and spin rate (0.125-1 °/s): how far a table's plan
+carries, so what grid spacing a table needs and how far outside a grid its plans are tried. Alone:
 ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only carry --coverage-states 10``.
 """
 
