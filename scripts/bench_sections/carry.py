@@ -13,6 +13,7 @@ rate moved by δr (the plan's start moved so that it meets the target at the sam
 :func:`lut.table.symmetry.start_delay_shift_s`). Per kind and displacement: the fraction of plans that still
 verify, and the failing checks tallied.
 """
+
 from __future__ import annotations
 
 import sys
@@ -55,7 +56,7 @@ def displaced(state: Any, attitude_deg: float, rate_deg_s: float, axis: np.ndarr
 
 
 def flat_spin_displaced(state: Any, spin_axis_deg: float, rate_deg_s: float) -> Any:
-    """``state`` (a flat spin) with its spin axis turned by ``spin_axis_deg`` about the orbital y axis (from α to
+    """``state`` (a flat spin, |ω| > 0) with its spin axis turned by ``spin_axis_deg`` about the orbital y axis (from α to
     α + ``spin_axis_deg`` in the x–z plane, the phase kept) and its spin rate moved by ``rate_deg_s`` (its axis
     kept)."""
     from scipy.spatial.transform import Rotation
