@@ -56,8 +56,8 @@ def displaced(state: Any, attitude_deg: float, rate_deg_s: float, axis: np.ndarr
 
 
 def flat_spin_displaced(state: Any, spin_axis_deg: float, rate_deg_s: float) -> Any:
-    """``state`` (a flat spin, |ω| > 0) with its spin axis turned by ``spin_axis_deg`` about the orbital y axis (from α to
-    α + ``spin_axis_deg`` in the x–z plane, the phase kept) and its spin rate moved by ``rate_deg_s`` (its axis
+    """``state`` (a flat spin, |ω| > 0) with its spin axis turned by ``spin_axis_deg`` about the orbital y axis (from
+    α to α + ``spin_axis_deg`` in the x–z plane, the phase kept) and its spin rate moved by ``rate_deg_s`` (its axis
     kept)."""
     from scipy.spatial.transform import Rotation
 
