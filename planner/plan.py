@@ -25,9 +25,10 @@ from planner.grasp_candidate import GraspCandidate
 from planner.model.freefloating import FreeFloatingModel
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.feasibility_stop import StallRule
+from planner.out_of_reach import OutOfReach, ReachableOnlyTooEarly
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_clearance import ApproachClearance
-from planner.phases.approach_guess import ReachScan, ScanOnDemand
+from planner.phases.approach_guess import ScanOnDemand
 from planner.phases.stabilization import (
     GraspState,
     StabilizationProblem,
@@ -50,18 +51,7 @@ from planner.plan_samples import PhaseSamples, approach_samples, grasp_state, jo
 Array = NDArray[np.float64]
 
 __all__ = ["GRASP_GUESSES", "RATE_DEMAND_TOLERATED", "STABILIZATION_BUDGET", "TIGHTENING_ROUNDS", "GraspCandidate",
-           "GraspPlan", "OutOfReach", "Planner", "approach_retry_budget", "plan_grasp"]
-
-
-class OutOfReach(Exception):
-    """A cold plan found no meeting time in the start-delay window where the arm reaches the grasp: the state
-    is infeasible, and there is no trajectory to verify. ``str()`` says why; ``scan`` is what the scan found at
-    each meeting time, ``elapsed_s`` how long it took [s]."""
-
-    def __init__(self, scan: ReachScan, elapsed_s: float) -> None:
-        self.scan = scan
-        self.elapsed_s = elapsed_s
-        super().__init__(scan.reason())
+           "GraspPlan", "OutOfReach", "Planner", "ReachableOnlyTooEarly", "approach_retry_budget", "plan_grasp"]
 
 
 class NoPlan(Exception):
@@ -142,7 +132,9 @@ class Planner:
         """Plan the grasp for the observed ``state``; ``warm_start`` seeds both NLPs.
 
         A cold plan whose scan of meeting times reaches none raises :class:`OutOfReach` at once (without a
-        reachable time the approach NLP would only search from θ_in for minutes). A cold plan whose
+        reachable time the approach NLP would only search from θ_in for minutes), and a live one whose every reachable
+        meeting time, from every base offset tried, comes before its answer can raises
+        :class:`ReachableOnlyTooEarly` (no approach was started). A cold plan whose
         stabilization fails from the first grasp tries the grasps the approach reaches from its next scanned
         guesses (:class:`~planner.plan_grasps.GraspSearch`). A warm plan keeps its grasp (a table's neighbours
         stay in one family of solutions). With approach costs (Eq. 14-16) the plan is the costed approach's own

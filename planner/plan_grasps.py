@@ -28,6 +28,7 @@ from planner.grasp_candidate import GraspCandidate, PhasePlanner, accumulated
 from planner.grasp_holds import RATE_DEMAND_TOLERATED, why_unheld
 from planner.model.target import TargetMotion, TargetState
 from planner.nlp.outcome import SolveOutcome
+from planner.out_of_reach import ReachableOnlyTooEarly
 from planner.phases.approach import ApproachSolution
 from planner.phases.approach_bounds import AS_SOLVED, ApproachBounds
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
@@ -74,6 +75,8 @@ BASE_OFFSET_GAP_M = 0.25
 # that offset θ_b(0) may end [m] per axis (half the grid's spacing or less: the next offset is another region)
 BASE_OFFSET_STARTS = 1
 BASE_OFFSET_BOX_M = 0.4
+# an approach solve that ended so made no NLP start: its scanned meeting times were none, or none in time
+NO_START = frozenset({SolveOutcome.NO_GUESS_IN_TIME, SolveOutcome.NO_GUESS_LEFT, SolveOutcome.NO_PINNED_START})
 
 
 def untightened_speed_scale() -> NDArray[np.float64]:
@@ -109,6 +112,7 @@ class GraspSearch:
         self._base_offsets: list[Array] = []  # where the chaser may wait for the grasps still to try (cold plans)
         self._tried_offsets: list[Array] = []  # θ_b(0) of the grasps tried so far [m]
         self._next_guess = 0  # the scanned guess the next retry starts from (cold plans)
+        self._approach_ends: list[SolveOutcome] = []  # how each approach solve of this search ended
         self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
         self.stabilization_s = 0.0  # the phase's wall time: NLP builds (if new) and solves [s]
 
@@ -123,6 +127,7 @@ class GraspSearch:
         get their budgeted solve only when no grasp passed the screen and stabilized. Past the deadline the last
         grasp tried is the answer.
         """
+        whole, t_start = self.scan, time.perf_counter()
         self.scan = scan_in_time(self.scan, self.deadline)  # a stage that came late (a costed plan's feasibility stage)
         app = self._solve_approach(self.warm.approach if self.warm is not None else None)
         first = self._candidate(app)
@@ -158,6 +163,9 @@ class GraspSearch:
             self._note_failure(*last, "")
         if self.deadline.passed and last is not None:
             return self._answer(*last)
+        if self._only_too_early():
+            raise ReachableOnlyTooEarly(whole.result, self.deadline.earliest_start_s(), len(self._tried_offsets),
+                                        time.perf_counter() - t_start)
         if self._refused(first):
             return first, first.unbraked(SolveOutcome.REFUSED_BEFORE_GRASP)
         # a budgeted failure is never the answer: the first grasp gets its whole solve
@@ -245,6 +253,7 @@ class GraspSearch:
             app = solve_approach_from_base(self.planner.approach, self.state, offset, BASE_OFFSET_STARTS,
                                            self.tracking_speed_scale, self.deadline, COLD_START_ITERATIONS,
                                            BASE_OFFSET_BOX_M)
+            self._approach_ends.append(app.status)
             self._tried_offsets.append(offset)
             where = f"θ_b(0) = ({offset[0]:+.2f}, {offset[1]:+.2f}) ± {BASE_OFFSET_BOX_M:g} m"
             if not app.success:
@@ -267,8 +276,16 @@ class GraspSearch:
 
     def _solve_approach(self, warm: ApproachParameters | None, **options: object) -> ApproachSolution:
         """The approach NLP for this plan's state, scan, tracking-rate scale and deadline."""
-        return solve_approach(self.planner.approach, self.state, warm, tracking_speed_scale=self.tracking_speed_scale,
-                              scan=self.scan, deadline=self.deadline, **options)
+        app = solve_approach(self.planner.approach, self.state, warm, tracking_speed_scale=self.tracking_speed_scale,
+                             scan=self.scan, deadline=self.deadline, **options)
+        self._approach_ends.append(app.status)
+        return app
+
+    def _only_too_early(self) -> bool:
+        """True when no approach solve of this search made an NLP start and some had meeting times, all too early for
+        this live plan (:class:`~planner.out_of_reach.ReachableOnlyTooEarly`)."""
+        ends = self._approach_ends
+        return bool(ends) and set(ends) <= NO_START and SolveOutcome.NO_GUESS_IN_TIME in ends
 
     def _failed(self, app: ApproachSolution) -> str:
         """Why ``app`` failed, for the notes: its status, and whether a live plan's solve stopped in time for its latest

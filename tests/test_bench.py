@@ -438,6 +438,7 @@ def test_a_query_out_of_reach_is_out_of_reach_whatever_its_table_plan_fails():
     assert failure_kind(table_plan, "killed at its time limit") is FailureKind.NO_GRASP_HELD
     assert failure_kind([], "out of reach: …") is None  # a feasible answer is not a failure
     assert failure_kind(table_plan, "out of reach (proven): at every start delay …") is FailureKind.OUT_OF_REACH_PROVEN
+    assert failure_kind(table_plan, "reachable only too early: the scan …") is FailureKind.ONLY_TOO_EARLY
 
 
 @pytest.mark.parametrize(("run", "kind"), [
@@ -447,6 +448,8 @@ def test_a_query_out_of_reach_is_out_of_reach_whatever_its_table_plan_fails():
     (CliRun(2, 0.9, "", "INFEASIBLE (0.1 s): out of reach (proven): at every start delay", None),
      FailureKind.OUT_OF_REACH_PROVEN),
     (CliRun(2, 9.0, "", "INFEASIBLE (9.0 s): no plan: the solve gave none", None), FailureKind.NO_PLAN),
+    (CliRun(2, 3.8, "", "INFEASIBLE (3.8 s): reachable only too early: the scan of the start-delay window [0, 90] s "
+                        "reaches the grasp only at start delays 0–6 s", None), FailureKind.ONLY_TOO_EARLY),
     (CliRun(1, 2.0, "", "error: --attitude: not a unit quaternion", None), FailureKind.BUG),
     (CliRun(70, 2.0, "", "internal error: …", None), FailureKind.BUG),
     (CliRun(-11, 9.0, "", "", None), FailureKind.BUG),
@@ -551,19 +554,6 @@ def test_a_failures_reach_windows_are_the_scans_reached_meeting_times_and_are_dr
     out_of_reach = with_windows([{"feasible_on_time": False, "reasons": [{"reason": "out of reach (proven)"}]}],
                                 [proven], "scenario_I")
     assert draw_failure_windows({"scenario_I_flat_spin": out_of_reach}, tmp_path / "none", "8") is None
-
-
-@pytest.mark.parametrize(("reached", "windows"), [
-    ([], []),  # nothing reached: no window
-    ([0.0], [[0.0, 0.0]]),  # one meeting time at the window's start: a window of one instant
-    ([88.0, 90.0], [[88.0, 90.0]]),  # neighbours one step apart, up to the window's end: one window
-    ([0.0, 2.0, 6.0], [[0.0, 2.0], [6.0, 6.0]]),  # one step missing: two windows
-    ([10.0, 12.0, 14.0, 40.0, 42.0], [[10.0, 14.0], [40.0, 42.0]]),
-])
-def test_reached_meeting_times_merge_into_windows_at_their_edges(reached, windows):
-    from bench_sections.reach_windows import merged_windows
-
-    assert merged_windows(reached, 2.0) == windows
 
 
 def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):

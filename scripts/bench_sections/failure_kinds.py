@@ -11,6 +11,7 @@ from typing import Any
 
 from bench_sections.coverage_runs import BUDGET_RAN_OUT, EXIT_MEANINGS, LATE_START, OVER_BUDGET
 from planner.deadline import FLOOR_STEP_S, START_LEAD_S
+from planner.out_of_reach import REACHABLE_ONLY_TOO_EARLY
 
 OUT_OF_REACH = "out of reach"
 OUT_OF_REACH_PROVEN = "out of reach (proven)"
@@ -34,8 +35,9 @@ class FailureKind(StrEnum):
     OUT_OF_REACH_PROVEN = "out of reach (proven)"
     OUT_OF_REACH = "out of reach"  # the scan of meeting times reached none: refused before solving
     NO_PLAN = "no plan"  # a query whose solves gave no plan and whose table had none near the state
-    # within reach only at start delays before EARLIEST_COLD_START_S: gone before a cold plan can answer
-    ONLY_TOO_EARLY = "reachable only too early"
+    # within reach only at start delays before a cold plan can start: the plan's own answer (planner.out_of_reach), or
+    # its state's reach windows all before EARLIEST_COLD_START_S
+    ONLY_TOO_EARLY = REACHABLE_ONLY_TOO_EARLY
     NO_GRASP_HELD = "no grasp held"  # verify refuses the plan before its grasp: the approach, the tracking, the grasp
     BRAKING = "braking"  # the grasp held; every failed check lies in the braking, from the grasp on
     LATE_START = "late start"  # verified feasible, but its approach was to start before its answer came
@@ -63,7 +65,8 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
         return FailureKind.OUT_OF_REACH
     if NO_PLAN in names:
         return FailureKind.NO_PLAN
-    if reach_windows_s and max(last for _, last in reach_windows_s) < EARLIEST_COLD_START_S:
+    too_early = REACHABLE_ONLY_TOO_EARLY in names or (refine_failure or "").startswith(REACHABLE_ONLY_TOO_EARLY)
+    if too_early or (reach_windows_s and max(last for _, last in reach_windows_s) < EARLIEST_COLD_START_S):
         return FailureKind.ONLY_TOO_EARLY
     if phases & BEFORE_THE_GRASP:
         return FailureKind.NO_GRASP_HELD

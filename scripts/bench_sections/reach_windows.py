@@ -21,27 +21,14 @@ if TYPE_CHECKING:
 WITHOUT_WINDOWS = (FailureKind.OUT_OF_REACH, FailureKind.OUT_OF_REACH_PROVEN)  # no window: nothing to draw
 
 
-def merged_windows(reached_s: list[float], step_s: float) -> list[list[float]]:
-    """The meeting times ``reached_s`` [s] (ascending, on a grid ``step_s`` [s] apart) as intervals ``[first, last]``:
-    neighbours one step apart share an interval, a gap of a step or more without a reached time starts a new one."""
-    windows: list[list[float]] = []
-    for t in reached_s:
-        if windows and t - windows[-1][1] <= step_s + 1e-9:
-            windows[-1][1] = t
-        else:
-            windows.append([t, t])
-    return windows
-
-
 def reach_windows_s(scenario: Scenario, spline: UniformCubicBSpline, state: EnvelopeState) -> list[list[float]]:
     """The start-delay intervals [s] at which the scan of ``state`` under ``scenario`` (its approach ``spline``)
     reached a meeting time (the scenario's whole window, no live floor)."""
+    from planner.out_of_reach import reached_start_delays_s
     from planner.phases.approach_guess import reach_scan
-    from planner.phases.reach_scan_result import DELAY_STEP_S, MeetingOutcome
 
     scan = reach_scan(scenario, spline, state.target_state(), 1, held_angles=False)
-    reached = [scan.window_s[0] + i * DELAY_STEP_S for i, o in enumerate(scan.outcomes) if o == MeetingOutcome.REACHED]
-    return merged_windows(reached, DELAY_STEP_S)
+    return [[first, last] for first, last in reached_start_delays_s(scan)]
 
 
 def with_windows(records: list[dict[str, Any]], states: list[EnvelopeState], scenario: str) -> list[dict[str, Any]]:

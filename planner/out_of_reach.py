@@ -1,0 +1,56 @@
+"""A state no plan can meet: the grasp beyond the arm's reach at every meeting time of the window, or within it only
+at start delays before a live plan's approach could start.
+
+Either is the state's answer, not a failed solve: no trajectory was made, so there is nothing to verify or export.
+"""
+
+from __future__ import annotations
+
+from planner.phases.reach_scan_result import DELAY_STEP_S, MeetingOutcome, ReachScan
+
+
+class OutOfReach(Exception):
+    """A cold plan found no meeting time in the start-delay window where the arm reaches the grasp: the state
+    is infeasible, and there is no trajectory to verify. ``str()`` says why; ``scan`` is what the scan found at
+    each meeting time, ``elapsed_s`` how long it took [s]."""
+
+    def __init__(self, scan: ReachScan, elapsed_s: float, reason: str | None = None) -> None:
+        self.scan = scan
+        self.elapsed_s = elapsed_s
+        super().__init__(scan.reason() if reason is None else reason)
+
+
+REACHABLE_ONLY_TOO_EARLY = "reachable only too early"
+
+
+class ReachableOnlyTooEarly(OutOfReach):
+    """A live cold plan whose every reachable meeting time, from every base offset it tried, starts the approach
+    before its answer can come: no approach was started, so no plan exists in time (the target must be observed
+    again). ``scan`` is the scan of the whole window; ``earliest_start_s`` the earliest start still in time [s after
+    the observation]."""
+
+    def __init__(self, scan: ReachScan, earliest_start_s: float, base_offsets: int, elapsed_s: float) -> None:
+        self.earliest_start_s = earliest_start_s
+        reached = " and ".join(f"{a:g}–{b:g} s" if b > a else f"{a:g} s" for a, b in reached_start_delays_s(scan))
+        super().__init__(scan, elapsed_s,
+                         f"{REACHABLE_ONLY_TOO_EARLY}: the scan of the start-delay window [{scan.window_s[0]:g}, "
+                         f"{scan.window_s[1]:g}] s reaches the grasp only at start delays {reached} after the "
+                         f"observation, before this plan's approach could start ({earliest_start_s:g} s: the time to "
+                         f"answer and the plan's lead), and from none of the {base_offsets} places the chaser may "
+                         "wait that were tried does it come later; a table's plan, or a plan from a newer "
+                         "observation, may meet it")
+
+
+def reached_start_delays_s(scan: ReachScan) -> list[tuple[float, float]]:
+    """The start delays [s] at which ``scan`` reached the grasp, as intervals ``(first, last)``: meeting times one scan
+    step apart share an interval."""
+    intervals: list[tuple[float, float]] = []
+    for i, outcome in enumerate(scan.outcomes):
+        if outcome != MeetingOutcome.REACHED:
+            continue
+        t = scan.window_s[0] + i * DELAY_STEP_S
+        if intervals and t - intervals[-1][1] <= DELAY_STEP_S + 1e-9:
+            intervals[-1] = (intervals[-1][0], t)
+        else:
+            intervals.append((t, t))
+    return intervals
