@@ -143,7 +143,7 @@ class GraspSearch:
                 continue
             if not candidate.approach_holds and self._refused(candidate):
                 if candidate is first:
-                    return first, first.unbraked(SolveOutcome.REFUSED_BEFORE_GRASP)
+                    return self._unbraked(first, whole, t_start)
                 continue
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
@@ -163,15 +163,22 @@ class GraspSearch:
             self._note_failure(*last, "")
         if self.deadline.passed and last is not None:
             return self._answer(*last)
-        if self._only_too_early():
-            raise ReachableOnlyTooEarly(whole.result, self.deadline.earliest_start_s(), len(self._tried_offsets),
-                                        time.perf_counter() - t_start)
-        if self._refused(first):
-            return first, first.unbraked(SolveOutcome.REFUSED_BEFORE_GRASP)
+        if self._only_too_early() or self._refused(first):
+            return self._unbraked(first, whole, t_start)
         # a budgeted failure is never the answer: the first grasp gets its whole solve
         self.notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
                           "again without it")
         return self._answer(first, self._stabilize(first, None))
+
+    def _unbraked(self, first: GraspCandidate, whole: ScanOnDemand,
+                  t_start: float) -> tuple[GraspCandidate, StabilizationSolution]:
+        """The first grasp, not braked (verify refuses it before the grasp); but when no approach of this search made
+        an NLP start, its meeting times all too early, :class:`~planner.out_of_reach.ReachableOnlyTooEarly` (``whole``:
+        the scan of the whole window; ``t_start``: the search's start, ``time.perf_counter()``)."""
+        if self._only_too_early():
+            raise ReachableOnlyTooEarly(whole.result, self.deadline.earliest_start_s(), len(self._tried_offsets),
+                                        time.perf_counter() - t_start)
+        return first, first.unbraked(SolveOutcome.REFUSED_BEFORE_GRASP)
 
     def _answer(self, candidate: GraspCandidate, stab: StabilizationSolution) -> tuple[GraspCandidate,
                                                                                      StabilizationSolution]:
