@@ -6,7 +6,7 @@ Either is the state's answer, not a failed solve: no trajectory was made, so the
 
 from __future__ import annotations
 
-from planner.phases.reach_scan_result import DELAY_STEP_S, MeetingOutcome, ReachScan
+from planner.phases.reach_scan_result import ReachScan
 
 
 class OutOfReach(Exception):
@@ -31,7 +31,7 @@ class ReachableOnlyTooEarly(OutOfReach):
 
     def __init__(self, scan: ReachScan, earliest_start_s: float, base_offsets: int, elapsed_s: float) -> None:
         self.earliest_start_s = earliest_start_s
-        reached = " and ".join(f"{a:g}–{b:g} s" if b > a else f"{a:g} s" for a, b in reached_start_delays_s(scan))
+        reached = " and ".join(f"{a:g}–{b:g} s" if b > a else f"{a:g} s" for a, b in scan.reached_start_delays_s())
         super().__init__(scan, elapsed_s,
                          f"{REACHABLE_ONLY_TOO_EARLY}: the scan of the start-delay window [{scan.window_s[0]:g}, "
                          f"{scan.window_s[1]:g}] s reaches the grasp only at start delays {reached} after the "
@@ -40,17 +40,3 @@ class ReachableOnlyTooEarly(OutOfReach):
                          "wait that were tried does it come later; a table whose plans start a few seconds after "
                          "the observation (phases.min_start_delay_s), or a newer observation, may meet it")
 
-
-def reached_start_delays_s(scan: ReachScan) -> list[tuple[float, float]]:
-    """The start delays [s] at which ``scan`` reached the grasp, as intervals ``(first, last)``: meeting times one scan
-    step apart share an interval."""
-    intervals: list[tuple[float, float]] = []
-    for i, outcome in enumerate(scan.outcomes):
-        if outcome != MeetingOutcome.REACHED:
-            continue
-        t = scan.window_s[0] + i * DELAY_STEP_S
-        if intervals and t - intervals[-1][1] <= DELAY_STEP_S + 1e-9:
-            intervals[-1] = (intervals[-1][0], t)
-        else:
-            intervals.append((t, t))
-    return intervals

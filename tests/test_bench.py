@@ -13,7 +13,6 @@ import math
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -399,10 +398,13 @@ def test_failure_kind_of_given_reasons(reasons, kind):
     assert failure_kind(reasons) is kind
 
 
-def test_the_earliest_cold_start_is_the_planners_own_floor_after_the_problems_build():
-    from planner.deadline import Deadline
+def test_the_earliest_cold_start_is_the_planners_own_floor_after_the_problems_build(monkeypatch):
+    from types import SimpleNamespace
 
-    observed = Deadline.after(100.0).observed(time.monotonic() - PROBLEM_BUILD_S)
+    import planner.deadline as deadline
+
+    monkeypatch.setattr(deadline, "time", SimpleNamespace(monotonic=lambda: 100.0 + PROBLEM_BUILD_S))  # built
+    observed = deadline.Deadline.after(100.0).observed(100.0)
     assert observed.earliest_start_s() == EARLIEST_COLD_START_S == 7.0
 
 
@@ -744,13 +746,14 @@ def test_a_flat_spin_displaced_along_its_family_is_that_far_in_spin_axis_and_rat
     np.testing.assert_allclose(delta, [rate_deg_s, (turn_deg + 180.0) % 360.0 - 180.0, 0.0], atol=1e-9)
 
 
-@pytest.mark.parametrize(("rate_from", "rate_to"), [(3.0, 3.5), (3.0, 2.0), (1.2, 1.0), (2.5, 2.5)])
-def test_a_flat_spin_plan_carried_to_another_rate_meets_the_target_at_the_same_spin_angle(rate_from, rate_to):
+@pytest.mark.parametrize(("rate_from", "rate_to", "tau"), [(3.0, 3.5, 40.0), (3.0, 2.0, 40.0), (1.2, 1.0, 40.0),
+                                                     (2.5, 2.5, 40.0),
+                                                     (3.0, 4.0, 2.0)])  # shifted before 0 s: one turn (90 s) later
+def test_a_flat_spin_plan_carried_to_another_rate_meets_the_target_at_the_same_spin_angle(rate_from, rate_to, tau):
     from planner.config.scenario import load_scenario
     from planner.plan_parameters import ApproachParameters, PlanParameters
 
     sc = load_scenario(ROOT / "configs/scenarios/scenario_II.toml")
-    tau = 40.0
     plan = PlanParameters(ApproachParameters(np.zeros(4), np.zeros(2), tau, np.zeros((3, 7))), np.zeros(5))
     moved = carry.carried_to_rate(plan, sc, rate_from, rate_to)
     meets_before = rate_from * (tau + sc.phases.approach_s)  # spin angle swept by the meeting [deg]

@@ -58,6 +58,20 @@ class ReachScan:
         """True when at least one meeting time gave an NLP start."""
         return MeetingOutcome.REACHED in self.outcomes
 
+    def reached_start_delays_s(self) -> list[tuple[float, float]]:
+        """The start delays [s] at which the scan reached the grasp, as intervals ``(first, last)``: meeting times one
+        scan step apart share an interval."""
+        intervals: list[tuple[float, float]] = []
+        for i, outcome in enumerate(self.outcomes):
+            if outcome != MeetingOutcome.REACHED:
+                continue
+            t = self.window_s[0] + i * DELAY_STEP_S
+            if intervals and t - intervals[-1][1] <= DELAY_STEP_S + 1e-9:
+                intervals[-1] = (intervals[-1][0], t)
+            else:
+                intervals.append((t, t))
+        return intervals
+
     @property
     def proven_out_of_reach(self) -> bool:
         """True when no plan can reach the grasp (not only the scan's IK)."""

@@ -24,11 +24,10 @@ WITHOUT_WINDOWS = (FailureKind.OUT_OF_REACH, FailureKind.OUT_OF_REACH_PROVEN)  #
 def reach_windows_s(scenario: Scenario, spline: UniformCubicBSpline, state: EnvelopeState) -> list[list[float]]:
     """The start-delay intervals [s] at which the scan of ``state`` under ``scenario`` (its approach ``spline``)
     reached a meeting time (the scenario's whole window, no live floor)."""
-    from planner.out_of_reach import reached_start_delays_s
     from planner.phases.approach_guess import reach_scan
 
     scan = reach_scan(scenario, spline, state.target_state(), 1, held_angles=False)
-    return [[first, last] for first, last in reached_start_delays_s(scan)]
+    return [[first, last] for first, last in scan.reached_start_delays_s()]
 
 
 def with_windows(records: list[dict[str, Any]], states: list[EnvelopeState], scenario: str) -> list[dict[str, Any]]:

@@ -12,7 +12,7 @@ import pytest
 from planner.config.scenario import load_scenario
 from planner.deadline import Deadline
 from planner.model.target import TargetState
-from planner.out_of_reach import OutOfReach, ReachableOnlyTooEarly, reached_start_delays_s
+from planner.out_of_reach import OutOfReach, ReachableOnlyTooEarly
 from planner.phases.reach_scan_result import MeetingOutcome, ReachScan
 from planner.plan import Planner
 from planner.verify.verifier import verify
@@ -40,8 +40,8 @@ def _scan(outcomes: tuple[MeetingOutcome, ...], earliest_s: float = 0.0) -> Reac
     ((R, MeetingOutcome.IK_UNSOLVED, R), [(0.0, 0.0), (4.0, 4.0)]),  # within the bound but no IK pose: not reached
 ])
 def test_the_reached_start_delays_merge_into_intervals_at_their_edges(outcomes, intervals):
-    assert reached_start_delays_s(_scan(outcomes)) == intervals
-    shifted = reached_start_delays_s(_scan(outcomes, earliest_s=10.0))  # a window that opens later
+    assert _scan(outcomes).reached_start_delays_s() == intervals
+    shifted = _scan(outcomes, earliest_s=10.0).reached_start_delays_s()  # a window that opens later
     assert shifted == [(a + 10.0, b + 10.0) for a, b in intervals]
 
 
