@@ -138,9 +138,21 @@ def inspect(table_path: str, as_json: bool, plot_dir: str | None) -> None:
     click.echo("points     " + ", ".join(f"{k} {v}" for k, v in info["counts"].items()) + f" (of {table.n_points})")
     for source in table.reused_from:
         click.echo(f"reused     {len(source.points)} points from {source.table} (built {source.created_utc})")
-    for name, s in [("solve time [s]", info["solve_time_s"])] + [(k, v) for k, v in info["costs"].items()]:
-        if s["min"] is not None:
-            click.echo(f"{name:<22} min {s['min']:.4g}  median {s['median']:.4g}  max {s['max']:.4g}")
+    for name, s in [("solve time [s]", info["solve_time_s"]), ("start delay [s]", info["start_delay_s"])]:
+        _echo_stats(name, s)
+    early = info["starting_too_soon"]
+    if early["plans"]:
+        click.echo(f"too soon   {early['plans']} of {info['counts']['feasible']} feasible plans start within "
+                   f"{early['within_s']:g} s of the observation: no query answers that soon (a flat spin's plan is "
+                   "tried a spin period later if the start-delay window holds it, a tumble's never)")
+    for name, s in info["costs"].items():
+        _echo_stats(name, s)
+
+
+def _echo_stats(name: str, s: dict[str, float | None]) -> None:
+    """One line of ``lutgen inspect``: the min, median and max of a field over the feasible points (none: no line)."""
+    if s["min"] is not None:
+        click.echo(f"{name:<22} min {s['min']:.4g}  median {s['median']:.4g}  max {s['max']:.4g}")
 
 
 def _table_info(table: Table, table_path: str) -> dict[str, Any]:
@@ -148,8 +160,10 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
     import numpy as np
 
     from lut.table.point_result import PointStatus
+    from planner.deadline import QUERY_EARLIEST_START_S
 
     feasible = table.status == PointStatus.FEASIBLE.code
+    start_delay_s = np.asarray(table.field("start_delay_s"), dtype=float)
 
     def stats(values: np.ndarray) -> dict[str, float | None]:
         v = np.asarray(values, dtype=float)[feasible]
@@ -166,6 +180,9 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
         "counts": table.counts(), "n_points": table.n_points,
         "reused_from": [source.as_json() for source in table.reused_from],
         "solve_time_s": stats(table.field("solve_time_s")),
+        "start_delay_s": stats(start_delay_s),
+        "starting_too_soon": {"within_s": QUERY_EARLIEST_START_S,
+                              "plans": int(np.count_nonzero(feasible & (start_delay_s < QUERY_EARLIEST_START_S)))},
         "costs": {key: stats(table.field(f"costs/{key}")) for key in
                   ("min_distance_m", "approach_energy_m2", "peak_grasp_torque_nm")
                   if table.has_field(f"costs/{key}")},

@@ -1,0 +1,58 @@
+"""``lutgen inspect`` reports when a table's plans start, and how many start before any query could answer: a plan
+starting within QUERY_EARLIEST_START_S of the observation is never flown (35 of an envelope table's 233 were)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from lut.table.point_result import PointStatus
+from planner.deadline import ANSWER_LEAD_S, FLOOR_STEP_S, QUERY_EARLIEST_START_S
+from tests.support.cli import ROOT, lutgen_in_process
+
+GOLDEN = ROOT / "tests" / "data" / "ci_golden.h5"
+
+
+def _with_start_delays(tmp_path, delays_s, infeasible=()):
+    """The golden table (4 feasible points) with these start delays, the points ``infeasible`` marked so."""
+    path = tmp_path / "t.h5"
+    shutil.copy(GOLDEN, path)
+    with h5py.File(path, "r+") as f:
+        f["points/start_delay_s"][...] = np.asarray(delays_s, dtype=float)
+        status = f["points/status"][...]
+        for p in infeasible:
+            status[p] = PointStatus.INFEASIBLE.code
+        f["points/status"][...] = status
+    return path
+
+
+def test_the_soonest_a_query_starts_a_table_plan_is_its_answer_lead_rounded_up():
+    # any answer takes some time: ceil(t + ANSWER_LEAD_S) for t > 0 is at least the lead plus one step
+    assert QUERY_EARLIEST_START_S == ANSWER_LEAD_S + FLOOR_STEP_S == 3.0
+
+
+@pytest.mark.parametrize(("delays_s", "infeasible", "too_soon"), [
+    ([18.6, 27.5, 30.0, 37.3], (), 0),               # the golden table as built
+    ([0.0, 2.999, 3.0, 40.0], (), 2),                # the edge: 3.0 s can be started, 2.999 s cannot
+    ([0.0, 2.999, 3.0, 40.0], (0,), 1),              # an infeasible point's parameters are no plan
+])
+def test_inspect_counts_the_feasible_plans_starting_too_soon(tmp_path, delays_s, infeasible, too_soon):
+    path = _with_start_delays(tmp_path, delays_s, infeasible)
+    info = json.loads(lutgen_in_process("inspect", path, "--json").stdout)
+    assert info["starting_too_soon"] == {"within_s": QUERY_EARLIEST_START_S, "plans": too_soon}
+    feasible = [d for p, d in enumerate(delays_s) if p not in infeasible]
+    assert info["start_delay_s"]["min"] == pytest.approx(min(feasible))
+    assert info["start_delay_s"]["max"] == pytest.approx(max(feasible))
+    text = lutgen_in_process("inspect", path).stdout
+    assert "start delay [s]" in text
+    lines = [line for line in text.splitlines() if line.startswith("too soon")]
+    if too_soon:
+        assert lines == [f"too soon   {too_soon} of {len(feasible)} feasible plans start within 3 s of the "
+                         "observation: no query answers that soon (a flat spin's plan is tried a spin period "
+                         "later if the start-delay window holds it, a tumble's never)"]
+    else:
+        assert lines == []
