@@ -30,7 +30,7 @@ from planner.phases.approach_ik import PoseIK
 from planner.phases.approach_start import StartClearance, starts_elsewhere_in_box
 from planner.phases.pregrasp_pose import at_own_angle, free_axis_turn, pregrasp_position
 from planner.phases.reach_proof import reach_proof
-from planner.phases.reach_scan_result import DELAY_STEP_S, ApproachGuess, MeetingOutcome, ReachScan
+from planner.phases.reach_scan_result import ApproachGuess, MeetingOutcome, ReachScan, scan_times_s
 from planner.phases.tracking import free_axis_angle
 from planner.phases.tracking_profile import TRACKING_NODES, backoff_m, smoothstep5
 
@@ -156,8 +156,7 @@ def _scan(scenario: Scenario, spline: UniformCubicBSpline, state: TargetState, c
     ctx = _Scan(sc, motion, fk_function(robot), scene, PoseIK.shared(sc),
                 np.eye(3) if free is None else np.column_stack([free, np.zeros(3), np.zeros(3)]),
                 x_home, extra_starts, state, StartClearance(sc, scene, motion))
-    earliest, latest = sc.phases.start_delay_window_s
-    times = [float(t) for t in np.arange(earliest, latest + 1e-9, DELAY_STEP_S)]
+    times = scan_times_s(sc.phases.start_delay_window_s)
     candidates, outcomes = _scan_window(ctx, times)
     if not candidates:  # before answering out of reach, the IK starts from the rest of the base-offset box too
         elsewhere = starts_elsewhere_in_box(sc, [x_home, *extra_starts], BASE_STARTS_PER_AXIS)

@@ -17,6 +17,15 @@ from planner.phases.reach_proof import ReachProof
 Array = NDArray[np.float64]
 
 DELAY_STEP_S = 2.0  # candidate meeting times are this far apart
+SAME_TIME_S = 1e-9  # a step this close before the window's end is its end [s]
+
+
+def scan_times_s(window_s: tuple[float, float]) -> list[float]:
+    """The start delays [s] the scan tries over ``window_s`` = (earliest, latest): every :data:`DELAY_STEP_S` from
+    the earliest, and the latest itself (a window whose length is no whole number of steps; a grasp reachable only
+    at the window's end was otherwise never scanned)."""
+    earliest, latest = window_s
+    return [float(t) for t in np.arange(earliest, latest - SAME_TIME_S, DELAY_STEP_S)] + [float(latest)]
 
 
 @dataclass(frozen=True)
@@ -50,7 +59,7 @@ class ReachScan:
 
     guesses: list[ApproachGuess]
     window_s: tuple[float, float]  # the start-delay window (earliest, latest) [s]
-    outcomes: tuple[MeetingOutcome, ...]  # one per scanned meeting time, DELAY_STEP_S apart
+    outcomes: tuple[MeetingOutcome, ...]  # one per scanned meeting time, scan_times_s(window_s)
     proof: ReachProof | None = None
 
     @property
@@ -62,10 +71,11 @@ class ReachScan:
         """The start delays [s] at which the scan reached the grasp, as intervals ``(first, last)``: meeting times one
         scan step apart share an interval."""
         intervals: list[tuple[float, float]] = []
-        for i, outcome in enumerate(self.outcomes):
+        if not self.outcomes:  # nothing scanned (the reach proof held)
+            return intervals
+        for t, outcome in zip(scan_times_s(self.window_s), self.outcomes, strict=True):
             if outcome != MeetingOutcome.REACHED:
                 continue
-            t = self.window_s[0] + i * DELAY_STEP_S
             if intervals and t - intervals[-1][1] <= DELAY_STEP_S + 1e-9:
                 intervals[-1] = (intervals[-1][0], t)
             else:
@@ -85,6 +95,6 @@ class ReachScan:
         unsolved = self.outcomes.count(MeetingOutcome.IK_UNSOLVED)
         return (f"out of reach: no meeting time within the start-delay window "
                 f"[{self.window_s[0]:g}, {self.window_s[1]:g}] s is reachable "
-                f"(of {len(self.outcomes)} scanned every {DELAY_STEP_S:g} s, the pre-grasp is beyond the arm's reach "
-                f"at {beyond}; at {unsolved} the arm cannot take the pre-grasp and tracking poses; the scan's verdict, "
-                f"not a proof)")
+                f"(of {len(self.outcomes)} scanned every {DELAY_STEP_S:g} s and at its end, the pre-grasp is beyond "
+                f"the arm's reach at {beyond}; at {unsolved} the arm cannot take the pre-grasp and tracking poses; the "
+                f"scan's verdict, not a proof)")

@@ -17,11 +17,12 @@ from planner.model.target import TargetState
 from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import reach_scan
 from planner.phases.reach_proof import reach_proof, wrist_distance_over_window
-from planner.phases.reach_scan_result import DELAY_STEP_S, ApproachGuess
+from planner.phases.reach_scan_result import DELAY_STEP_S, ApproachGuess, MeetingOutcome, ReachScan, scan_times_s
 from planner.plan import Planner
 from planner.verify.verifier import verify
 from tests.support.cli import ROOT
 
+REACHED, BEYOND = MeetingOutcome.REACHED, MeetingOutcome.BEYOND_REACH
 EARLIEST_S = 20.0  # scenario I's default state meets at a start delay of ~32.7 s with the window open from 0
 
 
@@ -50,6 +51,34 @@ def test_the_scan_and_the_proof_start_at_the_earliest_start(scenario_I):
     assert delays[0] == EARLIEST_S and delays[-1] == latest
     proof = reach_proof(sc, state)
     assert proof.window_s == (EARLIEST_S, latest) and EARLIEST_S <= proof.start_delay_s <= latest
+
+
+def test_a_window_no_whole_number_of_steps_long_is_scanned_at_its_end_too():
+    """A window of 5–90 s is scanned at 5, 7, …, 89 s and at 90 s: seed 7's scenario I flat spin 5 reaches its grasp
+    only at the window's end (its cold plan meets at 90 s), and a table built over the [5, 90] s window called it out
+    of reach when 89 s was the last time scanned."""
+    assert scan_times_s((5.0, 90.0)) == [5.0 + 2.0 * k for k in range(43)] + [90.0]
+    assert scan_times_s((0.0, 90.0)) == [2.0 * k for k in range(46)]  # the end is a step: not scanned twice
+    assert scan_times_s((0.0, 90.0 - 1e-12)) == [2.0 * k for k in range(45)] + [90.0 - 1e-12]
+    assert scan_times_s((7.0, 7.0)) == [7.0]  # a window of one instant
+    assert scan_times_s((3.5, 6.0)) == [3.5, 5.5, 6.0]
+    reached_at_end = ReachScan([], (5.0, 9.0), (BEYOND, BEYOND, REACHED)).reached_start_delays_s()
+    assert reached_at_end == [(9.0, 9.0)]
+    uneven = ReachScan([], (3.5, 6.0), (BEYOND, REACHED, REACHED)).reached_start_delays_s()
+    assert uneven == [(5.5, 6.0)]  # the end 0.5 s after the last step: one interval
+    assert ReachScan([], (0.0, 90.0), ()).reached_start_delays_s() == []  # proven: nothing scanned
+
+
+def test_a_grasp_reachable_only_at_the_windows_end_is_reached(scenario_I):
+    """Seed 7's scenario I flat spin 5 with the window opening at 5 s (``--earliest-start-s 5``): reached at 90 s
+    only, the window's end, which no step from 5 s lands on."""
+    sc = _from(scenario_I, 5.0)
+    state = TargetState(np.array([-0.483132140037, 0.705492500343, 0.516317087906, -0.0477528214917]),
+                        np.radians([0.0, 1.81613700239, 0.0]))
+    scan = reach_scan(sc, approach_spline(sc), state)
+    assert scan.reachable, scan.reason()
+    assert scan.reached_start_delays_s()[-1][1] == 90.0
+    assert all(g.start_delay_s >= 88.0 for g in scan.guesses)
 
 
 def test_a_window_closed_to_every_reachable_meeting_is_answered_with_it(scenario_I):
