@@ -630,22 +630,6 @@ def test_tables_are_matched_by_scenario_and_grid_kind(tmp_path, monkeypatch):
     assert coverage_tables.find_tables(tmp_path / "absent", []) == ({}, [])
 
 
-def test_a_live_variants_table_answers_its_scenario_where_the_scenarios_own_is_missing(tmp_path, monkeypatch):
-    identities = {"a.h5": ("scenario_I_live", "flat_spin"), "b.h5": ("scenario_I", "tumble"),
-                  "c.h5": ("scenario_II_live", "tumble"), "d.h5": ("scenario_II_lively", "flat_spin")}
-    for name in identities:
-        (tmp_path / name).write_bytes(b"")
-    monkeypatch.setattr(coverage_tables, "table_identity", lambda p: identities[p.name])
-    found, _ = coverage_tables.find_tables(tmp_path, [(k.name, k.scenario, k.motion) for k in coverage.KINDS])
-    # the scenario's own tumble table before the live flat-spin one; the live tumble table for both scenario II kinds
-    assert found == {"scenario_I_flat_spin": tmp_path / "b.h5", "scenario_I_tumble": tmp_path / "b.h5",
-                     "scenario_II_flat_spin": tmp_path / "c.h5", "scenario_II_tumble": tmp_path / "c.h5"}
-    del identities["b.h5"]
-    (tmp_path / "b.h5").unlink()
-    found, _ = coverage_tables.find_tables(tmp_path, [(k.name, k.scenario, k.motion) for k in coverage.KINDS])
-    assert found["scenario_I_flat_spin"] == tmp_path / "a.h5" and "scenario_I_tumble" not in found
-
-
 def test_reach_counts_each_what_if_over_the_coverage_states(bench):
     """The reach section scans the coverage section's states (the same kinds and count) under every what-if, and each
     count is the length of its list of state indices."""

@@ -1,15 +1,11 @@
 """Which table of a folder answers each kind of coverage state: the one built for its scenario and motion, else
-(a flat spin being a tumble) a tumble table of its scenario; a table of the scenario's live variant
-(``scenario_I_live``: the same scenario, its plans starting a few seconds after the observation, what the bundled
-envelope grids are built from) where the scenario's own is missing."""
+(a flat spin being a tumble) a tumble table of its scenario."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from bench_sections.common import relative
-
-LIVE_SUFFIX = "_live"  # configs/scenarios/scenario_*_live.toml
 
 
 def table_identity(path: Path) -> tuple[str, str]:
@@ -36,9 +32,7 @@ def find_tables(folder: Path, kinds: list[tuple[str, str, str]]) -> tuple[dict[s
         lines.append(f"{relative(path)}: {identity[0]} {identity[1]}")
     tables = {}
     for name, scenario, motion in kinds:
-        motions = (motion, "tumble") if motion == "flat_spin" else (motion,)
-        table = next((found[s, m] for s in (scenario, scenario + LIVE_SUFFIX) for m in motions if (s, m) in found),
-                     None)
+        table = found.get((scenario, motion)) or (found.get((scenario, "tumble")) if motion == "flat_spin" else None)
         if table is not None:
             tables[name] = table
     return tables, lines
