@@ -85,6 +85,6 @@ FLOOR_STEP_S = 1.0
 # a live plan's last solve (a braking, a costed descent's step) ends at least this long before the approach's start it
 # plans: the plan's assembly and verify come after it (verify took 0.2 s at either default state, machine loaded)
 ANSWER_LEAD_S = 2.0
-# the soonest a live answer may start a plan that is already made (a table's) [s after the observation]: its time to
-# answer (> 0) and ANSWER_LEAD_S, rounded up to a whole FLOOR_STEP_S; a table plan starting sooner is never flown
+# the soonest a live answer may start a plan that is already made (a table's, as carried to the state) [s after the
+# observation]: its time to answer (> 0) and ANSWER_LEAD_S, rounded up to a whole FLOOR_STEP_S
 QUERY_EARLIEST_START_S = ANSWER_LEAD_S + FLOOR_STEP_S

@@ -22,8 +22,8 @@ SAME_TIME_S = 1e-9  # a step this close before the window's end is its end [s]
 
 def scan_times_s(window_s: tuple[float, float]) -> list[float]:
     """The start delays [s] the scan tries over ``window_s`` = (earliest, latest): every :data:`DELAY_STEP_S` from
-    the earliest, and the latest itself (a window whose length is no whole number of steps; a grasp reachable only
-    at the window's end was otherwise never scanned)."""
+    the earliest, and the latest itself: a grasp reachable only at the end of a window whose length is no whole
+    number of steps was otherwise never scanned."""
     earliest, latest = window_s
     return [float(t) for t in np.arange(earliest, latest - SAME_TIME_S, DELAY_STEP_S)] + [float(latest)]
 
@@ -76,7 +76,7 @@ class ReachScan:
         for t, outcome in zip(scan_times_s(self.window_s), self.outcomes, strict=True):
             if outcome != MeetingOutcome.REACHED:
                 continue
-            if intervals and t - intervals[-1][1] <= DELAY_STEP_S + 1e-9:
+            if intervals and t - intervals[-1][1] <= DELAY_STEP_S + SAME_TIME_S:
                 intervals[-1] = (intervals[-1][0], t)
             else:
                 intervals.append((t, t))
