@@ -37,6 +37,5 @@ class ReachableOnlyTooEarly(OutOfReach):
                          f"{scan.window_s[1]:g}] s reaches the grasp only at start delays {reached} after the "
                          f"observation, before this plan's approach could start ({earliest_start_s:g} s: the time to "
                          f"answer and the plan's lead), and from none of the {base_offsets} places the chaser may "
-                         "wait that were tried does it come later; a table whose plans start a few seconds after "
-                         "the observation (phases.min_start_delay_s), or a newer observation, may meet it")
-
+                         "wait that were tried does it come later; a table's plan that, carried to this state, "
+                         "starts after the answer, or a newer observation, may meet it")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from types import SimpleNamespace
 
 import h5py
 import numpy as np
@@ -35,9 +36,16 @@ def _with_start_delays(tmp_path, delays_s, infeasible=(), kind="tumble"):
     return path
 
 
-def test_the_soonest_a_query_starts_a_table_plan_is_its_answer_lead_rounded_up():
-    # any answer takes some time: ceil(t + ANSWER_LEAD_S) for t > 0 is at least the lead plus one step
-    assert QUERY_EARLIEST_START_S == ANSWER_LEAD_S + FLOOR_STEP_S == 3.0
+@pytest.mark.parametrize(("elapsed_s", "earliest_s"), [(1e-6, 3.0), (0.6, 3.0), (1.0, 3.0), (1.001, 4.0)])
+def test_the_soonest_a_query_starts_a_table_plan_is_its_own_placement_rule(monkeypatch, elapsed_s, earliest_s):
+    """The query places a table plan no sooner than ``earliest_start_s(ANSWER_LEAD_S)`` (``TableQuery.placed``): for any
+    time to answer above 0 and up to one floor step that is QUERY_EARLIEST_START_S, and never less."""
+    import planner.deadline as deadline
+
+    monkeypatch.setattr(deadline, "time", SimpleNamespace(monotonic=lambda: 100.0 + elapsed_s))
+    placed_from = deadline.Deadline(observed_at_s=100.0).earliest_start_s(ANSWER_LEAD_S)
+    assert placed_from == earliest_s >= QUERY_EARLIEST_START_S
+    assert QUERY_EARLIEST_START_S == ANSWER_LEAD_S + FLOOR_STEP_S
 
 
 @pytest.mark.parametrize(("delays_s", "infeasible", "too_soon"), [

@@ -61,6 +61,8 @@ def test_a_window_no_whole_number_of_steps_long_is_scanned_at_its_end_too():
     assert scan_times_s((0.0, 90.0)) == [2.0 * k for k in range(46)]  # the end is a step: not scanned twice
     assert scan_times_s((0.0, 90.0 - 1e-12)) == [2.0 * k for k in range(45)] + [90.0 - 1e-12]
     assert scan_times_s((7.0, 7.0)) == [7.0]  # a window of one instant
+    assert scan_times_s((5.0, 6.0)) == [5.0, 6.0]  # shorter than a step: both ends
+    assert scan_times_s((5.0, 5.0 + 2e-10)) == [5.0 + 2e-10]  # within SAME_TIME_S: its end alone
     assert scan_times_s((3.5, 6.0)) == [3.5, 5.5, 6.0]
     reached_at_end = ReachScan([], (5.0, 9.0), (BEYOND, BEYOND, REACHED)).reached_start_delays_s()
     assert reached_at_end == [(9.0, 9.0)]
