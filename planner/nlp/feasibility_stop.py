@@ -38,16 +38,26 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class StallRule:
     """A solve has stalled at iteration ``i ≥ after`` when its relative violation (:meth:`FeasibilityStop.violation`)
-    is still above ``ratio`` times what it was ``over`` iterations before."""
+    is still above ``ratio`` times what it was ``over`` iterations before. With ``least_so_far`` the violation compared
+    is the least of the solve's iterations up to then, and a solve whose least violation is at most ``floor`` never
+    stalls: a solve that does not stop at its first feasible iterate (an approach) may leave the feasible set for a
+    while on its way to converge (IPOPT's filter accepts a rising violation), which is no stall."""
 
     after: int
     over: int
     ratio: float
+    least_so_far: bool = False
+    floor: float = 0.0
 
     def holds(self, violations: list[float]) -> bool:
         """True when the violations of iterations 0, 1, … (the last one the current iterate's) have stalled."""
         i = len(violations) - 1
-        return i >= max(self.after, self.over) and violations[i] > self.ratio * violations[i - self.over]
+        if i < max(self.after, self.over):
+            return False
+        now, before = violations[i], violations[i - self.over]
+        if self.least_so_far:
+            now, before = min(violations), min(violations[: i - self.over + 1])
+        return now > self.floor and now > self.ratio * before
 
 
 def row_limits(lbg: Array, ubg: Array) -> Array:

@@ -18,9 +18,11 @@ from numpy.typing import NDArray
 from planner.config.scenario import Scenario
 from planner.deadline import NO_DEADLINE, START_LEAD_S, Deadline
 from planner.model.target import TargetState
+from planner.nlp.feasibility_stop import StallRule
 from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem, ApproachSolution
 from planner.phases.approach_bounds import AS_SOLVED, ApproachBounds
+from planner.phases.approach_branch import one_side_of_singularities
 from planner.phases.approach_guess import ApproachGuess, ScanOnDemand, angles_apart
 from planner.phases.scan_in_time import meets_in_time, scan_in_time
 from planner.phases.tracking_profile import TRACKING_NODES
@@ -28,12 +30,13 @@ from planner.plan_parameters import ApproachParameters
 
 Array = NDArray[np.float64]
 
-# the approach's end and the tracking nodes keep this far [rad] on one side of each singular joint angle: the
-# tracking IK's rates grow like 1/sin of the distance to it (scenario II: 16× the limit at 0.02 rad)
-SINGULARITY_CLEARANCE_RAD = 0.2
 # IPOPT iterations a start from a scanned guess gets before the next guess is tried: cold starts that led to feasible
 # plans took 5-78 (two scenario I flat spins 246 and 315); failing ones ran 400-900 and spent the plan's budget
 COLD_START_ITERATIONS = 150
+# a feasibility approach's start from a scanned guess whose least violation so far is above 1e-3 and has not halved over
+# its last 30 iterations is given up, and the next guess tried: on 259 such starts traced (coverage states, seeds 7, 8)
+# that cuts none of the 180 that succeeded (one converged after a 28-iteration plateau), 74 of the 79 that failed
+APPROACH_STALL = StallRule(after=30, over=30, ratio=0.5, least_so_far=True, floor=1e-3)
 # IPOPT iterations a base-pinned start of an Eq. 16 solve gets: where the optimum at the base-offset guess exists it
 # converged in 8-16 (36 scenario I flat spins); where not (scenario II) it ran 100-400 and failed, 17-52 s a plan
 PINNED_START_ITERATIONS = 40
@@ -79,13 +82,13 @@ def solve_approach(problem: ApproachProblem, state: TargetState,
     start is tried and a running solve ends, status ``Out_Of_Time``; a start that can no longer be on time
     (:func:`start_deadline`) ends the same way, and so does this solve (the grasp search goes on from the next
     guess). The approach's end and the tracking nodes stay on one side of every singular joint angle
-    (:func:`_one_side_of_singularities`). ``meeting_time_box_s`` keeps every start within that many seconds of its
-    own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each grasp of ``avoid`` at about its
-    angle (a start whose box that leaves empty is skipped), so that guesses reach grasps not tried yet. A start from
-    a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations and the next guess is tried. A cold Eq. 16
-    solve ends, failed, when its base-pinned solve does (:func:`_base_pinned_first`). ``tightened``: rows held tighter
-    than the NLP's own, where an approach broke its clearance or rates between via points
-    (:mod:`planner.phases.approach_bounds`).
+    (:func:`~planner.phases.approach_branch.one_side_of_singularities`). ``meeting_time_box_s`` keeps every start
+    within that many seconds of its own start delay (None: anywhere in the window) and :data:`AVOID_GAP_S` from each
+    grasp of ``avoid`` at about its angle (a start whose box that leaves empty is skipped), so that guesses reach
+    grasps not tried yet. A start from a scanned guess ends after :data:`COLD_START_ITERATIONS` iterations, or once
+    stalled (:data:`APPROACH_STALL`, a feasibility approach's; status ``Stalled``), and the next guess is tried. A cold
+    Eq. 16 solve ends, failed, when its base-pinned solve does (:func:`_base_pinned_first`). ``tightened``: rows held
+    tighter than the NLP's own (:mod:`planner.phases.approach_bounds`: its clearance or rates between via points).
     """
     t0 = time.perf_counter()
     warm_start, result, iterations = _base_pinned_first(problem, state, warm_start, tracking_speed_scale,
@@ -298,7 +301,7 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     lbw, ubw = _not_before(problem, problem.lbw if lbw is None else lbw, problem.ubw if ubw is None else ubw,
                            deadline.earliest_start_s())
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
-    lbw, ubw = _one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
+    lbw, ubw = one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
                                           lbg, ubg)
     w0 = np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w])  # the bounds only narrowed: one clip for both
     if problem.n_extra:  # the distance slack of Eq. 15 starts at 0
@@ -311,12 +314,18 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     tightened.applied(problem, lbg, ubg)
     solver = problem.cold_solver if cold else problem.solver
     problem.budget.arm(lbg, ubg, stop_when_feasible=False, max_iterations=max_iterations,
-                       deadline=start_deadline(problem, ubw, deadline))
+                       deadline=start_deadline(problem, ubw, deadline), stall=_stall_rule(problem, cold))
     sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
     elapsed = time.perf_counter() - t0
     stats = solver.stats()
     return _solution(problem, np.asarray(sol["x"]).ravel(), np.asarray(sol["g"]).ravel(), float(sol["f"]), stats,
                      elapsed)
+
+
+def _stall_rule(problem: ApproachProblem, cold: bool) -> StallRule | None:
+    """:data:`APPROACH_STALL` for a start from a scanned guess of a feasibility approach (another guess is there to
+    try), else None: a costed approach's violation is not its only progress, and a warm start has no next guess."""
+    return APPROACH_STALL if cold and not problem.scenario.costs.weights_approach else None
 
 
 def start_deadline(problem: ApproachProblem, ubw: Array, deadline: Deadline) -> Deadline:
@@ -335,33 +344,6 @@ def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: fl
     delay = problem.decision.slice("start_delay_s").start
     lbw = lbw.copy()
     lbw[delay] = min(max(lbw[delay], earliest_s), ubw[delay])
-    return lbw, ubw
-
-
-def _one_side_of_singularities(problem: ApproachProblem, w0: Array, lbw: Array, ubw: Array, lbg: Array,
-                               ubg: Array) -> tuple[Array, Array]:
-    """Bounds ``(lbw, ubw)`` (copies) and, in place, ``lbg``/``ubg`` that keep the approach's end (its last via
-    point's joint row) and every tracking node on the side of each singular joint angle
-    (:mod:`planner.model.singular_joints`) where the start ``w0``'s tracking nodes are,
-    :data:`SINGULARITY_CLEARANCE_RAD` from it: the tracking IK joins them through no singularity. A joint whose
-    start nodes lie on both sides is left free: forcing a side on a start that crosses moves it by more than the
-    clearance (scenario I's base-pinned start took 587 iterations instead of 18)."""
-    lbw, ubw = lbw.copy(), ubw.copy()
-    n = problem.robot.n_joints
-    nodes = problem.decision.slice("tracking_nodes").start
-    q_end_row = problem.constraints.slice("joint_positions").start + (problem.k - 1) * n
-    for s in problem.singular_angles:
-        j, angle = s.joint_index, s.angle_rad
-        rows = [nodes + node * n + j for node in range(len(TRACKING_NODES))]
-        above = w0[rows] >= angle
-        if above.any() != above.all():
-            continue
-        if above.all():
-            lbw[rows] = np.maximum(lbw[rows], angle + SINGULARITY_CLEARANCE_RAD)
-            lbg[q_end_row + j] = max(lbg[q_end_row + j], angle + SINGULARITY_CLEARANCE_RAD)
-        else:
-            ubw[rows] = np.minimum(ubw[rows], angle - SINGULARITY_CLEARANCE_RAD)
-            ubg[q_end_row + j] = min(ubg[q_end_row + j], angle - SINGULARITY_CLEARANCE_RAD)
     return lbw, ubw
 
 
@@ -392,8 +374,10 @@ def _within_window(problem: ApproachProblem, start_delay_s: float) -> float:
 
 
 def _planner_stop(problem: ApproachProblem) -> SolveOutcome | None:
-    """Why the planner's callback ended the last solve, if it did: its iteration budget or its deadline (the plan's, or
-    its start's: :func:`start_deadline`)."""
+    """Why the planner's callback ended the last solve, if it did: its iteration budget, its stall rule
+    (:func:`_stall_rule`) or its deadline (the plan's, or its start's: :func:`start_deadline`)."""
     if problem.budget.budget_exhausted:
         return SolveOutcome.ITERATION_BUDGET_EXHAUSTED
+    if problem.budget.stalled:
+        return SolveOutcome.STALLED
     return SolveOutcome.OUT_OF_TIME if problem.budget.out_of_time else None

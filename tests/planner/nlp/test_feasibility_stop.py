@@ -110,6 +110,25 @@ def test_a_stall_rule_holds_only_once_the_violation_stops_falling_by_its_ratio()
     assert not rule.holds([5.0, 1.0, 1.0, 1.0, 1.0, 0.0])  # feasible: nothing to fall from
 
 
+def test_a_least_so_far_stall_rule_forgives_a_climb_and_a_solve_that_came_near_feasible():
+    rule = StallRule(after=5, over=5, ratio=0.5, least_so_far=True, floor=1e-3)
+    # IPOPT's filter lets the violation climb back up for a while: the least so far halved, so no stall, where the
+    # iterate-by-iterate rule of the same ratio calls it one
+    climb = [8.0, 4.0, 2.0, 1.0, 0.5, 0.2, 3.0, 3.0, 3.0, 3.0, 3.0]
+    assert not rule.holds(climb[:7]) and StallRule(after=5, over=5, ratio=0.5).holds(climb[:7])
+    # ... but 5 iterations after its least (0.2 at iteration 5), the least so far has not halved over 5: stalled
+    assert [rule.holds(climb[: i + 1]) for i in range(5, 11)] == [False] * 5 + [True]
+    # a solve whose least violation reached the floor never stalls, however long it then wanders
+    near = [5.0, 1.0, 1e-3, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0]
+    assert not any(rule.holds(near[: i + 1]) for i in range(len(near)))
+    just_above = [5.0, 1.0, 1e-3 + 1e-12, *([2.0] * 9)]
+    assert rule.holds(just_above[:8]) and not rule.holds(just_above[:7])  # 5 iterations after its least
+    # exactly halved over the window is progress (not above ratio × before), a hair less is a stall
+    halved = [4.0, 4.0, 4.0, 4.0, 4.0, 2.0]
+    assert not rule.holds(halved) and rule.holds([*halved[:-1], 2.0 + 1e-12])
+    assert not rule.holds([4.0] * 5)  # before ``after``: never
+
+
 def test_an_armed_stall_rule_ends_a_solve_whose_violation_stops_falling():
     # the unreachable disc of the test above (y pinned at 2), with a budget and no feasibility test: the violation
     # settles at s ≥ 3 while IPOPT goes on; a stall rule ends it, and re-armed without one the solve runs on

@@ -11,7 +11,8 @@ import pytest
 
 from planner.config.scenario import load_scenario
 from planner.model.target_state import TargetState
-from planner.phases.approach_solve import SINGULARITY_CLEARANCE_RAD, _one_side_of_singularities, solve_approach
+from planner.phases.approach_branch import SINGULARITY_CLEARANCE_RAD, one_side_of_singularities
+from planner.phases.approach_solve import solve_approach
 from planner.phases.tracking_profile import TRACKING_NODES, node_segment
 from planner.plan import Planner
 from planner.plan_grasps import RATE_DEMAND_TOLERATED
@@ -37,7 +38,7 @@ def test_the_bounds_follow_the_start_grasp_nodes_side(planner_II):
         rows = [nodes + node * n + 5 for node in range(len(TRACKING_NODES))]
         w0[rows] = 0.5 * side  # the tracking nodes' q6
         lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
-        lbw, ubw = _one_side_of_singularities(problem, w0, problem.lbw, problem.ubw, lbg, ubg)
+        lbw, ubw = one_side_of_singularities(problem, w0, problem.lbw, problem.ubw, lbg, ubg)
         bound = lbw if side > 0 else ubw
         g_bound = lbg if side > 0 else ubg
         assert np.all(bound[rows] == side * SINGULARITY_CLEARANCE_RAD)
@@ -59,7 +60,7 @@ def test_a_start_whose_nodes_cross_leaves_that_joint_free(planner_II, crossing):
     rows = [nodes + node * n + 5 for node in range(len(TRACKING_NODES))]
     w0[rows] = crossing  # scenario I's base-pinned start (first case) crosses q6 = 0 between its nodes
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
-    lbw, ubw = _one_side_of_singularities(problem, w0, problem.lbw, problem.ubw, lbg, ubg)
+    lbw, ubw = one_side_of_singularities(problem, w0, problem.lbw, problem.ubw, lbg, ubg)
     assert np.array_equal(lbw[rows], problem.lbw[rows]) and np.array_equal(ubw[rows], problem.ubw[rows])
     assert lbg[q_end_row + 5] == problem.lbg[q_end_row + 5] and ubg[q_end_row + 5] == problem.ubg[q_end_row + 5]
     pitch = [nodes + node * n + j for node in range(len(TRACKING_NODES)) for j in (1, 3)]

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import planner.phases.approach_guess as approach_guess_module
 from planner.config.scenario import load_scenario
+from planner.model.target import TargetState
+from planner.nlp.outcome import SolveOutcome
 from planner.phases.approach import ApproachProblem
 from planner.phases.approach_solve import solve_approach
 
@@ -259,3 +262,57 @@ def test_a_cold_energy_solve_with_no_pinned_start_ends_with_why(scenario_and_pro
     monkeypatch.setattr(approach_solve_module, "_solve_once", lambda *a, **k: pytest.fail("no IPOPT run expected"))
     out = solve_approach(problem, sc.target_state.as_state(), max_iterations=150)
     assert not out.success and out.iterations == 0 and out.status == SolveOutcome[status]
+
+
+# a scenario II general tumble of the coverage section (seed 7, state 4) whose scanned guesses all fail: from the first,
+# IPOPT ran 146 iterations without coming within 1e-3 of feasible (its least violation 3.8)
+HOPELESS_TUMBLE = TargetState(
+    np.array([0.7004236691691397, 0.013938905346571063, -0.3862406615163186, -0.6000254511075473]),
+    np.array([0.02642250431756234, 0.022405708107250868, -0.005016584340367115]))
+
+
+def test_a_cold_feasibility_start_that_stalls_is_given_up_where_unarmed_it_runs_to_its_cap(scenario_and_problem,
+                                                                                          monkeypatch):
+    """APPROACH_STALL ends a start from a scanned guess whose least violation has stopped halving, far above the
+    floor, and only such a start: unarmed, the same start spends its COLD_START_ITERATIONS and fails all the same."""
+    import planner.phases.approach_solve as approach_solve_module
+
+    _, problem = scenario_and_problem
+    stalled = solve_approach(problem, HOPELESS_TUMBLE, max_starts=1)
+    assert not stalled.success and stalled.status == SolveOutcome.STALLED and stalled.start_guess == 0
+    rule, violations = approach_solve_module.APPROACH_STALL, problem.budget._violations
+    # the rule counts the callbacks (iteration 0 and a restoration phase's own calls included), IPOPT its iterations
+    assert rule.after <= len(violations) - 1 <= 3 * rule.after and stalled.iterations < len(violations)
+    assert min(violations) > 100 * rule.floor and rule.holds(violations)
+    assert not rule.holds(violations[:-1])  # ended at the first iteration it held, not later
+    monkeypatch.setattr(approach_solve_module, "APPROACH_STALL", None)
+    unarmed = solve_approach(problem, HOPELESS_TUMBLE, max_starts=1)
+    assert not unarmed.success and unarmed.status == SolveOutcome.ITERATION_BUDGET_EXHAUSTED
+    assert len(problem.budget._violations) - 1 == approach_solve_module.COLD_START_ITERATIONS  # its whole cap
+    assert min(problem.budget._violations) > rule.floor  # 120 more iterations never came near feasible either
+
+
+def test_a_start_that_converges_is_the_same_with_the_stall_rule_armed_or_not(scenario_and_problem, monkeypatch):
+    import planner.phases.approach_solve as approach_solve_module
+
+    sc, problem = scenario_and_problem
+    state = sc.target_state.as_state()
+    armed = solve_approach(problem, state)
+    monkeypatch.setattr(approach_solve_module, "APPROACH_STALL", None)
+    unarmed = solve_approach(problem, state)
+    assert armed.success and armed.iterations == unarmed.iterations
+    np.testing.assert_array_equal(armed.params, unarmed.params)
+
+
+@pytest.mark.parametrize(("cold", "costed", "armed"), [(True, False, True), (False, False, False),
+                                                       (True, True, False), (False, True, False)])
+def test_only_a_cold_start_of_a_feasibility_approach_is_armed_with_the_stall_rule(cold, costed, armed):
+    """A costed approach's violation is not its only progress (it may leave the feasible set to lower its cost), and a
+    warm start has no next guess to give way to."""
+    from types import SimpleNamespace
+
+    import planner.phases.approach_solve as approach_solve_module
+
+    problem = SimpleNamespace(scenario=SimpleNamespace(costs=SimpleNamespace(weights_approach=costed)))
+    rule = approach_solve_module._stall_rule(problem, cold)
+    assert (rule is approach_solve_module.APPROACH_STALL) if armed else rule is None
