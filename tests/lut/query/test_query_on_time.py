@@ -107,6 +107,49 @@ def test_the_operators_earliest_start_holds_the_table_plans_and_reaches_the_solv
     assert all(kw["observed_at_s"] == opened.observed_at_s for kw in told)
 
 
+def _refines_recorded(monkeypatch, tq: TableQuery, feasible: bool) -> list[float | None]:
+    """Every table plan re-simulated verifies ``feasible`` (stand-in), the reach scan passes, and each refine is a
+    failing stand-in; returns the start delay [s] of each refine's warm start (None: a cold solve), in order."""
+    _no_solve(monkeypatch, tq)
+    monkeypatch.setattr(tq, "simulate_and_verify", lambda state, parameters, latency: (
+        SimpleNamespace(approach=parameters.approach), SimpleNamespace(feasible=feasible, checks={})))
+    warm_starts: list[float | None] = []
+
+    def refine(state, warm, budget_s):
+        warm_starts.append(None if warm is None else warm.approach.start_delay_s)
+        return PointResult(-1, PointStatus.FAILED, "stand-in: no solve")
+
+    monkeypatch.setattr(tq, "refine", refine)
+    return warm_starts
+
+
+def test_a_refine_starts_warm_from_the_table_plan_as_placed_a_period_later(opened, monkeypatch):
+    """The interpolated plan starts at 3 s, before the answer of a state observed 10 s ago: the query tries it a turn
+    (80 s) later, and when it fails there the warm refine starts from it there, not from its passed meeting time."""
+    state = _flat_spin(4.5)
+    found = opened.interpolate(state)
+    monkeypatch.setattr(opened, "interpolate",
+                        lambda s: replace(found, parameters=found.parameters.with_start_delay(3.0)))
+    warm_starts = _refines_recorded(monkeypatch, opened, feasible=False)
+    monkeypatch.setattr(opened, "corner_plan", lambda *a, **k: None)  # the interpolated plan's alone
+    with pytest.raises(NoPlan):
+        opened.query(state, budget_s=100.0, since_s=time.monotonic() - 10.0)
+    assert warm_starts == [pytest.approx(83.0, abs=1e-9), None]  # warm, then cold
+
+
+def test_no_refine_starts_warm_from_a_table_plan_no_period_brings_into_time(opened, monkeypatch):
+    """Observed 60 s ago, a 3.8 °/s spin (a turn of 95 s): the table's plans (18-40 s) cannot start in time, so the
+    refine from them is not made (its grasp has passed); the cold solve gets the budget at once."""
+    warm_starts = _refines_recorded(monkeypatch, opened, feasible=True)
+    with pytest.raises(NoPlan, match="would start too soon"):
+        opened.query(_flat_spin(3.8), budget_s=100.0, since_s=time.monotonic() - 60.0)
+    assert warm_starts == [None]
+    observed_now = _refines_recorded(monkeypatch, opened, feasible=False)  # the same table plan, in time
+    assert opened.query(_flat_spin(3.8), budget_s=100.0).source is QuerySource.INTERPOLATED  # infeasible, the least
+    found = opened.interpolate(_flat_spin(3.8))
+    assert observed_now == [found.parameters.approach.start_delay_s, None]
+
+
 def test_query_takes_earliest_start_and_says_which_table_plans_it_held_back():
     """End to end, with no time left to solve (8 s): the answer names the plans held back, exit 2, no plan."""
     proc = lutgen_in_process("query", GOLDEN, *ON_GRID_STATE, "--earliest-start-s", "60", "--budget-s", "8")
