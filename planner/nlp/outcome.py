@@ -47,7 +47,7 @@ class SolveOutcome(StrEnum):
     TORQUE_BETWEEN_VIA_POINTS = "Torque_Over_Limit_Between_Via_Points"  # feasible at the via points only
     CLEARANCE_BETWEEN_VIA_POINTS = "Clearance_Under_Margin_Between_Via_Points"  # the same, for a collision pair
     REFUSED_BEFORE_GRASP = "Refused_Before_The_Grasp"  # not braked: verify refuses the plan before its grasp
-    STALLED = "Stalled"  # its violation stopped falling (a stall rule armed: a repair given up early)
+    STALLED = "Stalled"  # its violation stopped falling (a stall rule armed: a repair or an approach start given up)
 
     @classmethod
     def from_ipopt(cls, return_status: str) -> SolveOutcome:

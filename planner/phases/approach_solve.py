@@ -302,7 +302,7 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
                            deadline.earliest_start_s())
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
     lbw, ubw = one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
-                                          lbg, ubg)
+                                         lbg, ubg)
     w0 = np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w])  # the bounds only narrowed: one clip for both
     if problem.n_extra:  # the distance slack of Eq. 15 starts at 0
         w0 = np.concatenate([w0, [0.0]])
