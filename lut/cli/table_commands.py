@@ -163,6 +163,7 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
     from planner.deadline import QUERY_EARLIEST_START_S
 
     feasible = table.status == PointStatus.FEASIBLE.code
+    grid_kind = table.attrs.get("grid_kind")
     start_delay_s = np.asarray(table.field("start_delay_s"), dtype=float)
 
     def stats(values: np.ndarray) -> dict[str, float | None]:
@@ -174,7 +175,7 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
 
     return {
         "table": table_path, "schema_version": int(table.attrs["schema_version"]),
-        "model_hash": table.model_hash, "grid_kind": table.attrs.get("grid_kind"),
+        "model_hash": table.model_hash, "grid_kind": grid_kind,
         "axes": {name: [float(x) for x in values] for name, values in zip(table.axis_names, table.axis_values,
                                                                             strict=True)},
         "counts": table.counts(), "n_points": table.n_points,
@@ -182,7 +183,7 @@ def _table_info(table: Table, table_path: str) -> dict[str, Any]:
         "solve_time_s": stats(table.field("solve_time_s")),
         "start_delay_s": stats(start_delay_s),
         # a flat-spin plan is carried to the state's phase: later for a state whose phase lags its point's
-        "starting_too_soon": None if table.attrs.get("grid_kind") != "tumble" else {
+        "starting_too_soon": None if grid_kind != "tumble" else {
             "within_s": QUERY_EARLIEST_START_S,
             "plans": int(np.count_nonzero(feasible & (start_delay_s < QUERY_EARLIEST_START_S)))},
         "costs": {key: stats(table.field(f"costs/{key}")) for key in

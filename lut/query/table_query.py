@@ -212,9 +212,9 @@ class TableQuery:
         (with its retries over grasps), in child processes and what the budget has left, while the plan so far
         (``made``) is not feasible or a refine was asked for; a solved plan is the attempt of ``corners``. The warm
         start is ``warm`` placed as the table's plans are (:meth:`placed`: whole spin periods later where it would start
-        before the answer), and none where no start is in time: its grasp has passed, and the refine from it spent
-        21-23 s of the budget and failed at the three such states traced. Returns the better plan and why the last
-        solve gave none ("" when none failed); ``t_start`` (``time.perf_counter()``) dates the query."""
+        before the answer), and none where no start is in time: its grasp has passed (docs/table.md, Query 5). Returns
+        the better plan and why the last solve gave none ("" when none failed); ``t_start`` (``time.perf_counter()``)
+        dates the query."""
         warm = None if warm is None else self.placed(state, warm)
         attempts = [(warm, QuerySource.REFINED)] if warm is not None else []
         attempts.append((None, QuerySource.SOLVED_COLD))

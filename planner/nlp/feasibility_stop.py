@@ -54,9 +54,10 @@ class StallRule:
         i = len(violations) - 1
         if i < max(self.after, self.over):
             return False
-        now, before = violations[i], violations[i - self.over]
         if self.least_so_far:
             now, before = min(violations), min(violations[: i - self.over + 1])
+        else:
+            now, before = violations[i], violations[i - self.over]
         return now > self.floor and now > self.ratio * before
 
 
