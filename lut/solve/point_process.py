@@ -5,11 +5,11 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lut.solve.parent_watch import scratch_dir
 from lut.solve.point_server import ServedAnswer, crash_reason, solve_served
 from lut.solve.point_worker import KWARG_PREFIX, WARM_PREFIX, load_npz, save_npz
 from lut.table.point_result import PointResult
@@ -40,8 +40,8 @@ def run_point(solver: str, scenario_path: str, point: int, state: TargetState, w
     ``keep_process``: solve in this process's kept solver process (:mod:`lut.solve.point_server`: a build's points
     share its planner) instead of a new one; the same limit, and a point over it or crashing ends that process.
     """
-    with tempfile.TemporaryDirectory(prefix="lutgen-point-") as tmp:
-        in_path, out_path = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
+    with scratch_dir("lutgen-point-") as tmp:
+        in_path, out_path = tmp / "in.npz", tmp / "out.npz"
         args = {"scenario_path": scenario_path, "point": point, "attitude_wxyz": state.attitude_wxyz,
                 "omega_body_rad_s": state.omega_body_rad_s, "warm_shift_s": warm_shift_s}
         if max_wall_s is not None:

@@ -1,4 +1,5 @@
-"""A killed build leaves no process behind; a query's refine timeout names the option that set it."""
+"""A killed build leaves no process and no scratch folder behind; a query's refine timeout names the option that set
+it."""
 
 from __future__ import annotations
 
@@ -50,13 +51,15 @@ def _alive(pids: set[int]) -> set[int]:
 
 
 def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
+    scratch = tmp_path / "tmp"  # the build's temporary folder: its workers' point folders go there
+    scratch.mkdir()
     script = textwrap.dedent(f"""
         from lut.build.options import BuildOptions
         from lut.build.sweep import run_build
         run_build({str(ROOT / "configs/grids/ci.toml")!r}, {str(tmp_path / "t.h5")!r},
                   BuildOptions(jobs=2, solver="tests.support.fake_solver:solve", progress=False))
     """)
-    env = {**os.environ, "LUTGEN_FAKE_SLEEP_S": "120", "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "LUTGEN_FAKE_SLEEP_S": "120", "PYTHONPATH": str(ROOT), "TMPDIR": str(scratch)}
     build = subprocess.Popen([sys.executable, "-c", script], env=env, cwd=tmp_path)
     try:
         deadline = time.monotonic() + 120
@@ -69,6 +72,7 @@ def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
             time.sleep(0.2)
         else:
             pytest.fail("no point process started")
+        assert any(p.name.startswith("lutgen-point-") for p in scratch.iterdir())  # the check below can fail
         helpers = _descendants(build.pid)
         build.send_signal(signal.SIGKILL)
         build.wait()
@@ -76,6 +80,8 @@ def test_a_killed_build_leaves_no_worker_or_solver_running(tmp_path):
         while _alive(helpers) and time.monotonic() - t0 < GONE_WITHIN_S:
             time.sleep(0.2)
         assert not _alive(helpers), f"still running {time.monotonic() - t0:.0f} s after the kill: {_alive(helpers)}"
+        left = [p.name for p in scratch.iterdir() if p.name.startswith("lutgen-point-")]
+        assert not left, f"scratch folders left by the killed build's workers: {left}"
     finally:
         for pid in _alive(_descendants(build.pid)) if build.poll() is None else set():
             os.kill(pid, signal.SIGKILL)
