@@ -28,6 +28,9 @@ with each scenario's variant ``configs/scenarios/<scenario>_NAME.toml``: ``--cov
 Each state's record keeps its reach slack (the reach proof's bound), and a failed plan's its reach windows (the
 meeting times the scan reached); each kind counts the failures nearer the reach's edge than every feasible plan, and
 ``--reach-plot DIR`` draws the plans' outcomes against it and the failures' windows against when they answered.
+``--coverage-offline-check`` plans each state whose live plan failed after reaching it (no grasp held, braking)
+again with ``--offline``: a feasible offline plan makes the failure *held only too early* (its approach starts before
+a cold live plan can) or *missed live* (later: the live search missed it).
 
 ``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
 ``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget
@@ -156,6 +159,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                     help="coverage: plan (and match tables) with each scenario's variant "
                          "configs/scenarios/<scenario>_NAME.toml, e.g. wide (the chaser free within ±2 m); the same "
                          "seeded states")
+    ap.add_argument("--coverage-offline-check", action="store_true",
+                    help="coverage: plan each failed plan's state again with --offline (same budget): a feasible "
+                         "offline plan tells whether its grasps hold only too early or the live search missed one")
     ap.add_argument("--coverage-queries-only", action="store_true",
                     help="coverage: the queries on the tables alone, no cold plans (e.g. after building a table)")
     ap.add_argument("--optimal-table", type=Path, default=None, metavar="PATH",
@@ -226,7 +232,8 @@ def run(settings: Settings, out: Path, only: tuple[str, ...] | None = None) -> d
 def coverage_settings_of(args: argparse.Namespace) -> CoverageSettings:
     """The coverage section's settings from the command line's options."""
     return coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables,
-                             args.coverage_kinds, not args.coverage_queries_only, args.coverage_variant)
+                             args.coverage_kinds, not args.coverage_queries_only, args.coverage_variant,
+                             args.coverage_offline_check)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -761,3 +761,64 @@ def test_a_flat_spin_plan_carried_to_another_rate_meets_the_target_at_the_same_s
     assert abs((meets_after - meets_before + 180.0) % 360.0 - 180.0) < 1e-9
     earliest, latest = sc.phases.start_delay_window_s
     assert earliest <= moved.approach.start_delay_s <= latest
+
+
+@pytest.mark.parametrize(("offline", "kind"), [
+    ({"exit_code": 0, "start_delay_s": 2.0}, FailureKind.HELD_ONLY_TOO_EARLY),  # a plan, before a live one can start
+    ({"exit_code": 0, "start_delay_s": 0.0}, FailureKind.HELD_ONLY_TOO_EARLY),
+    ({"exit_code": 0, "start_delay_s": np.nextafter(EARLIEST_COLD_START_S, 0.0)}, FailureKind.HELD_ONLY_TOO_EARLY),
+    ({"exit_code": 0, "start_delay_s": EARLIEST_COLD_START_S}, FailureKind.MISSED_LIVE),  # a start a live plan can take
+    ({"exit_code": 0, "start_delay_s": 31.2}, FailureKind.MISSED_LIVE),
+    ({"exit_code": 2, "start_delay_s": 2.0}, FailureKind.NO_GRASP_HELD),  # no plan offline either: what it failed
+    ({"exit_code": None, "start_delay_s": None}, FailureKind.NO_GRASP_HELD),  # killed: nothing known
+    (None, FailureKind.NO_GRASP_HELD),  # not planned offline
+])
+def test_an_offline_plan_tells_a_grasp_held_only_too_early_from_one_the_live_search_missed(offline, kind):
+    no_grasp = [_check("grasp_position", "grasp"), _check("collision", "approach")]
+    assert failure_kind(no_grasp, None, [[0.0, 90.0]], offline) is kind
+    assert record_failure_kind({"reasons": no_grasp, "offline": offline}) is kind
+    braking = [_check("grasp_torque", "stabilization")]
+    expected = FailureKind.BRAKING if kind is FailureKind.NO_GRASP_HELD else kind
+    assert failure_kind(braking, None, None, offline) is expected
+
+
+def test_an_offline_plan_does_not_overrule_what_says_more():
+    feasible = {"exit_code": 0, "start_delay_s": 20.0}
+    assert failure_kind([{"reason": "out of reach", "detail": "…"}], None, None, feasible) is FailureKind.OUT_OF_REACH
+    assert failure_kind([{"reason": "over budget", "detail": "130 s"}], None, None, feasible) is FailureKind.OVER_BUDGET
+    early = [_check("collision", "approach")]
+    assert failure_kind(early, None, [[0.0, 2.0]], feasible) is FailureKind.ONLY_TOO_EARLY  # the scan says when
+
+
+def test_the_offline_check_plans_only_the_failures_it_can_explain_with_offline(monkeypatch):
+    import bench
+    from bench_sections import offline_check
+    from bench_sections.common import settings_for
+
+    outcomes = [[], [_check("grasp_torque", "stabilization")], [{"reason": "out of reach", "detail": "…"}],
+                [_check("collision", "approach")]]
+
+    def fake_run_all(jobs, settings):
+        return [{"feasible_on_time": not reasons, "wall_s": 1.0, "exit_code": 2 if reasons else 0, "reasons": reasons}
+                for reasons in outcomes[: len(jobs)]]
+
+    offline_runs: list[list[str]] = []
+
+    def fake_run_cli(args, kill_after_s):
+        offline_runs.append(args)
+        return CliRun(0, 3.0, "", "", {"start_delay_s": 1.5, "checks": {}})
+
+    monkeypatch.setattr(coverage, "run_all", fake_run_all)
+    monkeypatch.setattr(coverage, "with_windows", lambda records, states, scenario: records)
+    monkeypatch.setattr(offline_check, "run_cli", fake_run_cli)
+    args = bench.parse_args(["--coverage-kinds", "scenario_I_tumble", "--coverage-states", "4",
+                             "--coverage-offline-check", "--coverage-tables", str(ROOT / "tests" / "data")])
+    c = coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0, bench.coverage_settings_of(args)))
+    runs = c["plans"]["scenario_I_tumble"]["runs"]
+    # the braking and the no-grasp-held failures, not the feasible plan nor the state out of reach
+    assert [a[-1] for a in offline_runs] == ["--offline"] * 2
+    assert ["offline" in r for r in runs] == [False, True, False, True]
+    assert runs[1]["offline"] == {"exit_code": 0, "wall_s": 3.0, "start_delay_s": 1.5}
+    assert c["plans"]["scenario_I_tumble"]["failures_by_kind"] == {"held only too early": 2, "out of reach": 1}
+    assert c["offline_check"] is True
+    assert not bench.coverage_settings_of(bench.parse_args([])).offline_check  # off unless asked for

@@ -24,6 +24,7 @@ from bench_sections.envelope import (
     tumble_state,
 )
 from bench_sections.failure_kinds import cut_by_the_budget, record_failure_kind
+from bench_sections.offline_check import with_offline
 from bench_sections.reach_windows import with_windows
 
 SEED_SALT = 20  # the coverage states' seed is (--seed, issue 20, kind)
@@ -119,6 +120,13 @@ def run_all(jobs: list[list[str]], settings: Settings) -> list[dict[str, Any]]:
         return list(pool.map(one, jobs))
 
 
+def _plan_records(jobs: list[list[str]], states: list[EnvelopeState], scenario: str, slacks: list[float],
+                  settings: Settings) -> list[dict[str, Any]]:
+    """The cold plans' records with their states' reach slacks and windows, and their offline plans if asked for."""
+    records = with_windows(with_slacks(run_all(jobs, settings), slacks), states, scenario)
+    return with_offline(records, jobs, settings) if settings.coverage.offline_check else records
+
+
 def plan_args(scenario: str, state: EnvelopeState, budget_s: float) -> list[str]:
     budget = ["--budget-s", f"{budget_s:g}"] if plan_takes_budget() else []
     return ["plan", f"configs/scenarios/{scenario}.toml", *state_args(state), *budget]
@@ -167,7 +175,7 @@ def coverage(settings: Settings) -> dict[str, Any]:
         states, scenario = kind_states(kind, c.states, settings.seed), c.scenario_of(kind.scenario)
         slacks = reach_slacks(states, scenario)
         plan_jobs = [plan_args(scenario, s, c.budget_s) for s in states]
-        plans[kind.name] = (summary(with_windows(with_slacks(run_all(plan_jobs, settings), slacks), states, scenario))
+        plans[kind.name] = (summary(_plan_records(plan_jobs, states, scenario, slacks, settings))
                             if c.plans else skipped("--coverage-queries-only", SUMMARY_KEYS))
         table = tables.get(kind.name)
         if table is None:
@@ -176,6 +184,7 @@ def coverage(settings: Settings) -> dict[str, Any]:
         queries[kind.name] = {"table": relative(table), **summary(with_slacks(
             run_all([query_args(cli_path(table), s, c.budget_s) for s in states], settings), slacks))}
     return {"states_per_kind": c.states, "seed": [settings.seed, SEED_SALT], "variant": c.variant,
+            "offline_check": c.offline_check,
             "budget_s": c.budget_s,
             "kill_after_s": c.budget_s + c.kill_margin_s, "jobs": c.jobs, "plan_budget_option": plan_takes_budget(),
             "envelope": {"flat_spin": f"spin about the target's major axis (from its inertia) along (cos α, 0, sin α) "

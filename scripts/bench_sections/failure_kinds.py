@@ -38,6 +38,11 @@ class FailureKind(StrEnum):
     # within reach only at start delays before a cold plan can start: the plan's own answer (planner.out_of_reach), or
     # its state's reach windows all before EARLIEST_COLD_START_S
     ONLY_TOO_EARLY = REACHABLE_ONLY_TOO_EARLY
+    # its state planned offline (bench_sections.offline_check) is feasible, its approach starting before a cold live
+    # plan can (EARLIEST_COLD_START_S): the grasps that hold come only too early
+    HELD_ONLY_TOO_EARLY = "held only too early"
+    # planned offline, feasible, starting after that: a live search that found that grasp first could have flown it
+    MISSED_LIVE = "missed live"
     NO_GRASP_HELD = "no grasp held"  # verify refuses the plan before its grasp: the approach, the tracking, the grasp
     BRAKING = "braking"  # the grasp held; every failed check lies in the braking, from the grasp on
     LATE_START = "late start"  # verified feasible, but its approach was to start before its answer came
@@ -45,12 +50,15 @@ class FailureKind(StrEnum):
 
 
 def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None = None,
-                 reach_windows_s: Sequence[Sequence[float]] | None = None) -> FailureKind | None:
+                 reach_windows_s: Sequence[Sequence[float]] | None = None,
+                 offline: Mapping[str, Any] | None = None) -> FailureKind | None:
     """The kind of a run's failure from its ``reasons`` (None: no reason, the run gave a verified plan on time); for a
     query, why its solve did not finish (a query answers a state out of reach with its table's plan, whose failed
     checks are the table's, not the state's); for a cold plan, its state's ``reach_windows_s`` (the start delays [s]
     the scan reached, as intervals; None: not known), all before a cold plan can start (:data:`EARLIEST_COLD_START_S`)
-    being the failure's kind whatever the plan then failed."""
+    being the failure's kind whatever the plan then failed; and the same state's ``offline`` plan (its exit code and
+    start delay [s], :mod:`bench_sections.offline_check`; None: not planned), which, feasible, tells when a plan
+    exists."""
     if not reasons:
         return None
     names = {r["reason"] for r in reasons}
@@ -68,6 +76,9 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
     too_early = REACHABLE_ONLY_TOO_EARLY in names or (refine_failure or "").startswith(REACHABLE_ONLY_TOO_EARLY)
     if too_early or (reach_windows_s and max(last for _, last in reach_windows_s) < EARLIEST_COLD_START_S):
         return FailureKind.ONLY_TOO_EARLY
+    if offline is not None and offline["exit_code"] == 0:
+        early = offline["start_delay_s"] < EARLIEST_COLD_START_S
+        return FailureKind.HELD_ONLY_TOO_EARLY if early else FailureKind.MISSED_LIVE
     if phases & BEFORE_THE_GRASP:
         return FailureKind.NO_GRASP_HELD
     if phases == {"stabilization"}:
@@ -79,8 +90,9 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
 
 def record_failure_kind(record: Mapping[str, Any]) -> FailureKind | None:
     """:func:`failure_kind` of a coverage run's record (its reasons, a query's refine failure, a plan's reach
-    windows)."""
-    return failure_kind(record["reasons"], record.get("refine_failure"), record.get("reach_windows_s"))
+    windows, its offline plan)."""
+    return failure_kind(record["reasons"], record.get("refine_failure"), record.get("reach_windows_s"),
+                        record.get("offline"))
 
 
 def cut_by_the_budget(reasons: Sequence[dict[str, Any]]) -> bool:
