@@ -2,7 +2,8 @@
 whole start-delay window, no timing verdict; the same budget, one core), beside the live run. A live plan must start
 after its own answer; where the offline plan is feasible and starts before a cold live plan can, the state's grasps
 hold only too early (the failure is its timing); where it starts later, the live search missed a grasp an offline one
-found (the failure is the planner's)."""
+found (the failure is the search's, not the state's; the offline search may have reached it only after its start
+too: its wall time is kept beside the start delay)."""
 
 from __future__ import annotations
 
