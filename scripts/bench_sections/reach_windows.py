@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from bench_sections.common import load_scenario_named
 from bench_sections.envelope import EnvelopeState
-from bench_sections.failure_kinds import FailureKind, record_failure_kind
+from bench_sections.failure_kinds import EARLIEST_COLD_START_S, FailureKind, record_failure_kind
 from lut.output.plot_style import new_figure, save_figure
 
 if TYPE_CHECKING:
@@ -41,10 +41,18 @@ def with_windows(records: list[dict[str, Any]], states: list[EnvelopeState], sce
             for r, s in zip(records, states, strict=True)]
 
 
+def offline_start_s(record: dict[str, Any]) -> float | None:
+    """When the approach of the record's feasible offline plan starts [s after the observation]
+    (:mod:`bench_sections.offline_check`); None without one."""
+    offline = record.get("offline") or {}
+    return offline["start_delay_s"] if offline.get("exit_code") == 0 else None
+
+
 def draw_failure_windows(runs: dict[str, list[dict[str, Any]]], folder: Path, seeds: str) -> Path | None:
     """``coverage_windows.png`` in ``folder``: one row per failure whose grasp comes within reach, its reach windows
     as bars over the start-delay window, a tick where its plan answered (the wall time: the approach must start
-    after it) and a dot where its answer's approach started; None when there is no such failure."""
+    after it), a dot where its answer's approach started, a diamond where its feasible offline plan's starts, and a
+    dashed line at the earliest start a cold live plan can take; None when there is no such failure."""
     rows = [(kind, i, r) for kind, records in runs.items() for i, r in enumerate(records)
             if "reach_windows_s" in r and record_failure_kind(r) not in WITHOUT_WINDOWS]
     if not rows:
@@ -58,11 +66,15 @@ def draw_failure_windows(runs: dict[str, list[dict[str, Any]]], folder: Path, se
         ax.plot([r["wall_s"]], [y], marker="|", markersize=12, color="black")
         if r.get("start_delay_s") is not None:
             ax.plot([r["start_delay_s"]], [y], marker="o", markersize=5, color="tab:red")
+        if offline_start_s(r) is not None:
+            ax.plot([offline_start_s(r)], [y], marker="D", markersize=5, color="tab:green")
+    ax.axvline(EARLIEST_COLD_START_S, color="0.4", linestyle="--", linewidth=0.8)
     labels = [f"{kind} {i}: {record_failure_kind(r).value}" for kind, i, r in rows]
     ax.set_yticks(range(len(rows)), labels, fontsize=7)
     ax.invert_yaxis()
     ax.set_xlabel("after the observation [s]: grey, the meeting times the scan reached; |, the plan's answer; "
-                  "red, its approach's start")
+                  "red, its approach's start;\ngreen, a feasible offline plan's approach's start; dashed, the earliest "
+                  "start a cold live plan can take")
     return save_figure(fig, folder / "coverage_windows.png",
                        f"Coverage failures within reach (seed {seeds}): when the grasp is reachable against when the "
                        "plan answered")
