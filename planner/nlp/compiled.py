@@ -14,8 +14,11 @@ under a file lock, so a table build's workers wait for one compiler instead of r
 appears by atomic rename, so no process ever loads half of one. A cached library that cannot be loaded or
 gives other numbers (truncated by a full disk, copied from another machine) is deleted and compiled once more.
 
-``-O0``: the sources are large (megabytes of straight-line code), where gcc's optimiser takes an order of
-magnitude longer to compile than it saves in evaluation.
+``-O0`` by default: the sources are large (megabytes of straight-line code), and a plan on a fresh machine compiles
+inside its own time budget. With :data:`OPTIMIZE_ENV` set (an operator preparing a machine, an overnight build) what
+is missing is compiled at ``-O1``, which takes ~3× longer, once per machine, and evaluates the NLPs' Jacobians faster;
+once such a library is cached every process loads it, a live plan included. ``-ffp-contract=off`` keeps the optimiser
+from fusing a multiply and an add (FMA), so that both levels give the same numbers.
 
 Without a C compiler (or with ``LUTGEN_COMPILE=0``) the SX Function itself is used: the same answers, more
 slowly. :func:`compiled` never fails because of compilation; it says why it fell back in
@@ -31,12 +34,15 @@ import shutil
 import subprocess
 import tempfile
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 COMPILE_FLAGS = ("-shared", "-fPIC", "-O0")
+OPTIMIZED_FLAGS = ("-shared", "-fPIC", "-O1", "-ffp-contract=off")
+OPTIMIZE_ENV = "LUTGEN_COMPILE_OPTIMIZED"  # "1": a library not yet cached is compiled with OPTIMIZED_FLAGS
 COMPILE_TIMEOUT_S = 900.0
 # compiled and interpreted results agree bit for bit; the check allows a few ulps of headroom in case a
 # compiler contracts a multiply-add (FMA), which changes the last bit
@@ -59,6 +65,11 @@ def compile_enabled() -> bool:
     return os.environ.get("LUTGEN_COMPILE", "1").strip().lower() not in ("0", "false", "no", "off")
 
 
+def optimize_wanted() -> bool:
+    """True when :data:`OPTIMIZE_ENV` is ``1``/``true``/``yes``/``on``: compile what is missing with ``-O1``."""
+    return os.environ.get(OPTIMIZE_ENV, "0").strip().lower() in ("1", "true", "yes", "on")
+
+
 def compiled(f: ca.Function, options: dict | None = None, with_jacobian: bool = True) -> ca.Function:
     """``f`` (an SX Function) with its Jacobian, compiled and loaded, or ``f`` itself if that is not possible.
 
@@ -71,10 +82,12 @@ def compiled(f: ca.Function, options: dict | None = None, with_jacobian: bool = 
     if compiler is None:
         return _fall_back(f, "no C compiler found (set CC, or install gcc)")
     jacobian = f.jacobian() if with_jacobian else None
+    entry = _CacheEntry.of(f, compiler, with_jacobian)
     problem = ""
     for attempt in range(2):  # a cached library that cannot be loaded or disagrees is compiled once more
+        flags = entry.flags()
         try:
-            library = _library(f, jacobian, compiler)
+            library = _library(entry, f, jacobian, compiler, flags)
             loaded = ca.external(f.name(), str(library), dict(options or {}))
         except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
             problem = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
@@ -83,24 +96,42 @@ def compiled(f: ca.Function, options: dict | None = None, with_jacobian: bool = 
                 return loaded
             problem = f"the compiled {library.name} disagrees with the interpreted Function"
             del loaded  # unloads it: a library still loaded would be found again by the next dlopen of its path
-        if attempt == 1 or not _discard_cached(f, compiler, with_jacobian):
+        if attempt == 1 or not _discard_cached(entry, flags):
             break
     return _fall_back(f, problem)
 
 
-def _cache_paths(f: ca.Function, compiler: str, with_jacobian: bool = True) -> tuple[Path, Path]:
-    """The cached library of ``f`` (and its Jacobian) for ``compiler`` and its lock file (named by a hash of the
-    expression graph)."""
-    key = hashlib.sha256("\0".join([f.serialize(), ca.__version__, compiler, *COMPILE_FLAGS]).encode())
-    stem = f"{f.name()}-{key.hexdigest()[:24]}" + ("" if with_jacobian else "-nojac")
-    folder = cache_dir()
-    return folder / f"{stem}.so", folder / f"{stem}.lock"
+@dataclass(frozen=True)
+class _CacheEntry:
+    """One Function's place in the cache: a library (and its lock file) per set of compiler flags."""
+
+    name: str
+    source: str  # what the libraries are named by: the expression graph, the CasADi version, the compiler
+    with_jacobian: bool
+
+    @classmethod
+    def of(cls, f: ca.Function, compiler: str, with_jacobian: bool) -> _CacheEntry:
+        """The entry of ``f`` (and its Jacobian, if ``with_jacobian``) compiled by ``compiler``."""
+        return cls(f.name(), "\0".join([f.serialize(), ca.__version__, compiler]), with_jacobian)
+
+    def paths(self, flags: tuple[str, ...]) -> tuple[Path, Path]:
+        """The library compiled with ``flags`` and its lock file."""
+        key = hashlib.sha256("\0".join([self.source, *flags]).encode())
+        stem = f"{self.name}-{key.hexdigest()[:24]}" + ("" if self.with_jacobian else "-nojac")
+        folder = cache_dir()
+        return folder / f"{stem}.so", folder / f"{stem}.lock"
+
+    def flags(self) -> tuple[str, ...]:
+        """The flags of the library to load: ``-O1``'s when it is cached or wanted (:func:`optimize_wanted`), else
+        ``-O0``'s."""
+        optimized, _ = self.paths(OPTIMIZED_FLAGS)
+        return OPTIMIZED_FLAGS if optimized.is_file() or optimize_wanted() else COMPILE_FLAGS
 
 
-def _discard_cached(f: ca.Function, compiler: str, with_jacobian: bool) -> bool:
-    """Delete the cached library of ``f`` (broken: truncated, foreign, or giving other numbers), under its
-    lock; True when there was one to delete, so compiling again may help."""
-    library, lock_path = _cache_paths(f, compiler, with_jacobian)
+def _discard_cached(entry: _CacheEntry, flags: tuple[str, ...]) -> bool:
+    """Delete ``entry``'s library compiled with ``flags`` (broken: truncated, foreign, or giving other numbers), under
+    its lock; True when there was one to delete, so compiling again may help."""
+    library, lock_path = entry.paths(flags)
     if not library.is_file():
         return False
     with open(lock_path, "w") as lock:
@@ -109,10 +140,12 @@ def _discard_cached(f: ca.Function, compiler: str, with_jacobian: bool) -> bool:
     return True
 
 
-def _library(f: ca.Function, jacobian: ca.Function | None, compiler: str) -> Path:
-    """The cached shared library of ``f`` and its Jacobian (if not None), compiled first if missing."""
+def _library(entry: _CacheEntry, f: ca.Function, jacobian: ca.Function | None, compiler: str,
+             flags: tuple[str, ...]) -> Path:
+    """The cached shared library of ``f`` and its Jacobian (if not None) compiled with ``flags``, compiled first if
+    missing."""
     name = f.name()
-    library, lock_path = _cache_paths(f, compiler, jacobian is not None)
+    library, lock_path = entry.paths(flags)
     folder = library.parent
     folder.mkdir(parents=True, exist_ok=True)
     if library.is_file():
@@ -129,7 +162,7 @@ def _library(f: ca.Function, jacobian: ca.Function | None, compiler: str) -> Pat
             c_file = Path(scratch) / f"{name}.c"
             c_file.write_text(generator.dump())
             built = Path(scratch) / f"{name}.so"
-            done = subprocess.run([compiler, *COMPILE_FLAGS, str(c_file), "-o", str(built), "-lm"],
+            done = subprocess.run([compiler, *flags, str(c_file), "-o", str(built), "-lm"],
                                   capture_output=True, text=True, timeout=COMPILE_TIMEOUT_S)
             if done.returncode != 0:
                 output = (done.stderr or done.stdout).strip()[:300]

@@ -153,3 +153,47 @@ def test_processes_racing_for_one_library_compile_it_once(cache, tmp_path):
     assert log.read_text().split() == ["run"]
     expected = float(_function()([0.1, 0.2, 0.3], [0.4, 0.5])[0][0])
     assert [float(o.strip()) for o, _ in outs] == [expected, expected]
+
+
+def _logging_compiler(tmp_path: Path) -> tuple[Path, Path]:
+    """A ``cc`` that logs its arguments, one line a run; its path and the log's."""
+    log = tmp_path / "compiler.log"
+    wrapper = tmp_path / "cc-logging"
+    wrapper.write_text(f"#!/bin/sh\necho \"$@\" >> {log}\nexec cc \"$@\"\n")
+    wrapper.chmod(0o755)
+    return wrapper, log
+
+
+def test_an_optimized_library_is_compiled_when_asked_for_and_loaded_by_every_process_after(cache, tmp_path,
+                                                                                           monkeypatch):
+    """``LUTGEN_COMPILE_OPTIMIZED=1``: ``-O1`` without multiply-add fusion, the numbers bit for bit the interpreted
+    Function's; once cached, a process that does not ask for it loads it (no compiler run, no ``-O0`` library)."""
+    wrapper, log = _logging_compiler(tmp_path)
+    monkeypatch.setenv("CC", str(wrapper))
+    monkeypatch.setenv(compiled_module.OPTIMIZE_ENV, "1")
+    f = _function()
+    g = compiled(f)
+    (run,) = log.read_text().splitlines()
+    assert "-O1" in run.split() and "-ffp-contract=off" in run.split() and "-O0" not in run.split()
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        _assert_same(f, g, rng.normal(size=3), rng.normal(size=2))
+    monkeypatch.delenv(compiled_module.OPTIMIZE_ENV)
+    assert compiled(_function()).is_a("External")
+    assert len(log.read_text().splitlines()) == 1 and len(list(cache.glob("toy-*.so"))) == 1
+
+
+def test_without_the_request_a_library_is_compiled_at_O0_under_the_name_it_always_had(cache, tmp_path, monkeypatch):
+    """The ``-O0`` library keeps its name (a hash of the graph, the CasADi version, the compiler and the flags), so a
+    cache filled before ``-O1`` existed is still used."""
+    import hashlib
+
+    wrapper, log = _logging_compiler(tmp_path)
+    monkeypatch.setenv("CC", str(wrapper))
+    monkeypatch.delenv(compiled_module.OPTIMIZE_ENV, raising=False)
+    f = _function()
+    assert compiled(f).is_a("External")
+    (run,) = log.read_text().splitlines()
+    assert "-O0" in run.split() and "-O1" not in run.split()
+    key = hashlib.sha256("\0".join([f.serialize(), ca.__version__, str(wrapper), "-shared", "-fPIC", "-O0"]).encode())
+    assert [p.name for p in cache.glob("toy-*.so")] == [f"toy-{key.hexdigest()[:24]}.so"]
