@@ -16,9 +16,10 @@ gives other numbers (truncated by a full disk, copied from another machine) is d
 
 ``-O0`` by default: the sources are large (megabytes of straight-line code), and a plan on a fresh machine compiles
 inside its own time budget. With :data:`OPTIMIZE_ENV` set (an operator preparing a machine, an overnight build) what
-is missing is compiled at ``-O1``, which takes ~3× longer, once per machine, and evaluates the NLPs' Jacobians faster;
-once such a library is cached every process loads it, a live plan included. ``-ffp-contract=off`` keeps the optimiser
-from fusing a multiply and an add (FMA), so that both levels give the same numbers.
+is missing is compiled at ``-O1``, which takes several times longer, once per machine (README, "Compiled inner
+Functions"), and evaluates the NLPs' Jacobians faster; once such a library is cached every process loads it, a live
+plan included. ``-ffp-contract=off`` keeps the optimiser from fusing a multiply and an add (FMA), so that both levels
+give the same numbers.
 
 Without a C compiler (or with ``LUTGEN_COMPILE=0``) the SX Function itself is used: the same answers, more
 slowly. :func:`compiled` never fails because of compilation; it says why it fell back in
@@ -40,7 +41,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-COMPILE_FLAGS = ("-shared", "-fPIC", "-O0")
+COMPILE_FLAGS = ("-shared", "-fPIC", "-O0")  # the default: quick to compile (a fresh machine's first plan)
 OPTIMIZED_FLAGS = ("-shared", "-fPIC", "-O1", "-ffp-contract=off")
 OPTIMIZE_ENV = "LUTGEN_COMPILE_OPTIMIZED"  # "1": a library not yet cached is compiled with OPTIMIZED_FLAGS
 COMPILE_TIMEOUT_S = 900.0
