@@ -535,7 +535,8 @@ def test_a_failures_reach_windows_are_the_scans_reached_meeting_times_and_are_dr
     """Seed 8's third scenario I flat spin is proven out of reach: no window; scenario I's default state, planned
     feasible by every plan test, is reached in disjoint intervals inside the start-delay window, on the scan's 2 s
     grid; only failures get windows, and the figure draws the failures that have any (none: no figure)."""
-    from bench_sections.reach_windows import draw_failure_windows, offline_start_s, reach_windows_s, with_windows
+    from bench_sections.failure_kinds import offline_start_s
+    from bench_sections.reach_windows import draw_failure_windows, reach_windows_s, with_windows
 
     from planner.phases.approach import approach_spline
 
@@ -552,8 +553,9 @@ def test_a_failures_reach_windows_are_the_scans_reached_meeting_times_and_are_dr
     held_early = {**braking, "offline": {"exit_code": 0, "wall_s": 6.0, "start_delay_s": 0.07}}
     runs = with_windows([{"feasible_on_time": True, "reasons": []}, braking, held_early], [default] * 3, "scenario_I")
     assert "reach_windows_s" not in runs[0] and runs[1]["reach_windows_s"] == windows
-    assert [offline_start_s(r) for r in runs] == [None, None, 0.07]
-    assert offline_start_s({**braking, "offline": {"exit_code": 2, "wall_s": 95.0, "start_delay_s": 3.0}}) is None
+    assert [offline_start_s(r.get("offline")) for r in runs] == [None, None, 0.07]
+    assert offline_start_s({"exit_code": 2, "wall_s": 95.0, "start_delay_s": 3.0}) is None
+    assert offline_start_s({"exit_code": None, "wall_s": 130.0, "start_delay_s": None}) is None  # killed
     figure = draw_failure_windows({"scenario_I_flat_spin": runs}, tmp_path, "8")
     assert figure == tmp_path / "coverage_windows.png" and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     out_of_reach = with_windows([{"feasible_on_time": False, "reasons": [{"reason": "out of reach (proven)"}]}],

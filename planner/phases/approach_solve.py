@@ -37,7 +37,7 @@ COLD_START_ITERATIONS = 150
 # its last 50 iterations is given up, and the next guess tried: on 259 such starts traced (coverage states, seeds 7, 8)
 # that cuts none of the 180 that succeeded, 47 of the 79 that failed; a window of 30 lost a start that converged after a
 # 45-iteration plateau (README, "The measurements behind the planner's constants")
-APPROACH_STALL = StallRule(after=30, over=50, ratio=0.5, least_so_far=True, floor=1e-3)
+APPROACH_STALL = StallRule(after=50, over=50, ratio=0.5, least_so_far=True, floor=1e-3)  # judged from its 50th on
 # IPOPT iterations a base-pinned start of an Eq. 16 solve gets: where the optimum at the base-offset guess exists it
 # converged in 8-16 (36 scenario I flat spins); where not (scenario II) it ran 100-400 and failed, 17-52 s a plan
 PINNED_START_ITERATIONS = 40

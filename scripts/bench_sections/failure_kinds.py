@@ -76,9 +76,9 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
     too_early = REACHABLE_ONLY_TOO_EARLY in names or (refine_failure or "").startswith(REACHABLE_ONLY_TOO_EARLY)
     if too_early or (reach_windows_s and max(last for _, last in reach_windows_s) < EARLIEST_COLD_START_S):
         return FailureKind.ONLY_TOO_EARLY
-    if offline is not None and offline["exit_code"] == 0:
-        early = offline["start_delay_s"] < EARLIEST_COLD_START_S
-        return FailureKind.HELD_ONLY_TOO_EARLY if early else FailureKind.MISSED_LIVE
+    offline_start = offline_start_s(offline)
+    if offline_start is not None:
+        return FailureKind.HELD_ONLY_TOO_EARLY if offline_start < EARLIEST_COLD_START_S else FailureKind.MISSED_LIVE
     if phases & BEFORE_THE_GRASP:
         return FailureKind.NO_GRASP_HELD
     if phases == {"stabilization"}:
@@ -86,6 +86,12 @@ def failure_kind(reasons: Sequence[dict[str, Any]], refine_failure: str | None =
     if names == {LATE_START} or names == {LATE_START, BUDGET_RAN_OUT}:
         return FailureKind.LATE_START
     return FailureKind.UNEXPLAINED
+
+
+def offline_start_s(offline: Mapping[str, Any] | None) -> float | None:
+    """When the approach of a feasible offline plan (a record's ``offline``, :mod:`bench_sections.offline_check`)
+    starts [s after the observation]; None without one (not planned, infeasible, killed)."""
+    return offline["start_delay_s"] if offline is not None and offline["exit_code"] == 0 else None
 
 
 def record_failure_kind(record: Mapping[str, Any]) -> FailureKind | None:

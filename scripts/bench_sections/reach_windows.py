@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from bench_sections.common import load_scenario_named
 from bench_sections.envelope import EnvelopeState
-from bench_sections.failure_kinds import EARLIEST_COLD_START_S, FailureKind, record_failure_kind
+from bench_sections.failure_kinds import EARLIEST_COLD_START_S, FailureKind, offline_start_s, record_failure_kind
 from lut.output.plot_style import new_figure, save_figure
 
 if TYPE_CHECKING:
@@ -41,13 +41,6 @@ def with_windows(records: list[dict[str, Any]], states: list[EnvelopeState], sce
             for r, s in zip(records, states, strict=True)]
 
 
-def offline_start_s(record: dict[str, Any]) -> float | None:
-    """When the approach of the record's feasible offline plan starts [s after the observation]
-    (:mod:`bench_sections.offline_check`); None without one."""
-    offline = record.get("offline") or {}
-    return offline["start_delay_s"] if offline.get("exit_code") == 0 else None
-
-
 def draw_failure_windows(runs: dict[str, list[dict[str, Any]]], folder: Path, seeds: str) -> Path | None:
     """``coverage_windows.png`` in ``folder``: one row per failure whose grasp comes within reach, its reach windows
     as bars over the start-delay window, a tick where its plan answered (the wall time: the approach must start
@@ -66,8 +59,8 @@ def draw_failure_windows(runs: dict[str, list[dict[str, Any]]], folder: Path, se
         ax.plot([r["wall_s"]], [y], marker="|", markersize=12, color="black")
         if r.get("start_delay_s") is not None:
             ax.plot([r["start_delay_s"]], [y], marker="o", markersize=5, color="tab:red")
-        if offline_start_s(r) is not None:
-            ax.plot([offline_start_s(r)], [y], marker="D", markersize=5, color="tab:green")
+        if (offline_start := offline_start_s(r.get("offline"))) is not None:
+            ax.plot([offline_start], [y], marker="D", markersize=5, color="tab:green")
     ax.axvline(EARLIEST_COLD_START_S, color="0.4", linestyle="--", linewidth=0.8)
     labels = [f"{kind} {i}: {record_failure_kind(r).value}" for kind, i, r in rows]
     ax.set_yticks(range(len(rows)), labels, fontsize=7)
