@@ -43,10 +43,13 @@ def plan_table(result: GraspPlan, report: VerifyReport) -> list[str]:
 def plan_lines(result: GraspPlan, report: VerifyReport, notes: tuple[str, ...] | list[str] = (),
                note_prefix: str = "note: ") -> list[str]:
     """What every command that answers with a plan prints: :func:`plan_table`, each of ``notes`` as one line after
-    ``note_prefix``, then the verification's summary."""
+    ``note_prefix``, what the verdict adds (:func:`lut.output.export.verdict_notes`), then the verification's
+    summary."""
+    from lut.output.export import verdict_notes
     from planner.verify.verifier import summary_lines
 
-    return [*plan_table(result, report), *(note_prefix + note for note in notes), *summary_lines(report)]
+    return [*plan_table(result, report), *(note_prefix + note for note in notes),
+            *("note: " + note for note in verdict_notes(result, report)), *summary_lines(report)]
 
 
 def cost_table(costs: tuple[CostBreakdown, ...], scorer: CostScorer, source: str) -> list[str]:

@@ -17,6 +17,7 @@ import numpy as np
 
 from lut.output.plan_replay import replay_block
 from lut.table.records import plan_costs
+from planner.box_edge import box_edge_note
 from planner.errors import LutgenError
 from planner.model.rotation import matrix_to_quat
 from planner.model.shapes import Box
@@ -29,6 +30,12 @@ SCHEMA = "lutgen.plan/1"
 def _finite(x: float) -> float | None:
     """JSON has no inf/NaN: unconstrained limits are written as null."""
     return float(x) if math.isfinite(x) else None
+
+
+def verdict_notes(plan: GraspPlan, report: VerifyReport) -> list[str]:
+    """What the verdict adds to a plan's notes: for a refused plan, θ_b(0) on its base-offset box's edge."""
+    edge = None if report.feasible else box_edge_note(plan.scenario.base_offset_bounds_m, plan.approach.base_offset_m)
+    return [] if edge is None else [edge]
 
 
 def plan_metrics(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
@@ -55,7 +62,7 @@ def plan_metrics(plan: GraspPlan, report: VerifyReport) -> dict[str, Any]:
                               "build_time_s": plan.stabilization.build_time_s},
             "timings_s": dict(plan.timings_s),
         },
-        "notes": list(plan.notes),
+        "notes": [*plan.notes, *verdict_notes(plan, report)],
         "limits": {"grasp_torque_max_nm": _finite(sc.limits.grasp_torque_max_nm),
                    "grasp_force_max_n": _finite(sc.limits.grasp_force_max_n),
                    "collision_margin_m": sc.limits.collision_margin_m},
