@@ -30,7 +30,10 @@ meeting times the scan reached); each kind counts the failures nearer the reach'
 ``--reach-plot DIR`` draws the plans' outcomes against it and the failures' windows against when they answered.
 ``--coverage-offline-check`` plans each state whose live plan failed after reaching it (no grasp held, braking)
 again with ``--offline``: a feasible offline plan makes the failure *held only too early* (its approach starts before
-a cold live plan can) or *missed live* (later: the live search missed it).
+a cold live plan can) or *missed live* (later: the live search missed it). ``--coverage-variant-check NAME`` plans
+each failed state (but a bug, a run over its budget or late) again live with the scenario's variant (e.g. ``wide``):
+a feasible plan there says the failure is where the bundled scenario lets the chaser wait; each kind counts those,
+and the failures whose refused plan left θ_b(0) on its box's edge.
 
 ``optimal`` (issue 21) queries ``--optimal-states`` seeded off-grid states (default 30) of the optimal table
 ``--optimal-table`` (default ``tables/flat_spin_I_energy.h5``) and plans each cold with a 600 s budget
@@ -129,6 +132,31 @@ def coverage_variant(text: str) -> str:
     return name
 
 
+def add_coverage_options(ap: argparse.ArgumentParser) -> None:
+    """The coverage section's options (``--coverage-*``)."""
+    ap.add_argument("--coverage-states", type=positive_int, default=None, metavar="N",
+                    help="coverage: seeded states per kind (default 20; --quick 1; --trim 1 of one kind)")
+    ap.add_argument("--coverage-jobs", type=positive_int, default=1, metavar="N",
+                    help="coverage: processes at a time (default 1; more share the cores and inflate wall times)")
+    ap.add_argument("--coverage-tables", type=Path, default=None, metavar="DIR",
+                    help="coverage: folder of the tables the queries use, matched to each kind by the scenario "
+                         "and grid kind they were built for (default: tables/; --trim: tests/data)")
+    ap.add_argument("--coverage-kinds", type=coverage_kinds, default=None, metavar="KIND[,KIND]",
+                    help=f"coverage: only these kinds ({', '.join(k.name for k in KINDS)}; default all)")
+    ap.add_argument("--coverage-variant", type=coverage_variant, default=None, metavar="NAME",
+                    help="coverage: plan (and match tables) with each scenario's variant "
+                         "configs/scenarios/<scenario>_NAME.toml, e.g. wide (the chaser free within ±2 m); the same "
+                         "seeded states")
+    ap.add_argument("--coverage-offline-check", action="store_true",
+                    help="coverage: plan each failed plan's state again with --offline (same budget): a feasible "
+                         "offline plan tells whether its grasps hold only too early or the live search missed one")
+    ap.add_argument("--coverage-variant-check", type=coverage_variant, default=None, metavar="NAME",
+                    help="coverage: plan each failed plan's state again, live, with the scenario's variant NAME "
+                         "(e.g. wide: the chaser free within ±2 m): a feasible plan there puts the failure on the box")
+    ap.add_argument("--coverage-queries-only", action="store_true",
+                    help="coverage: the queries on the tables alone, no cold plans (e.g. after building a table)")
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -146,24 +174,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--plan-cap-s", type=float, default=300.0, help="IPOPT wall-time cap (s) per NLP of a plan")
     ap.add_argument("--plan-with-costs", action="store_true",
                     help="also plan with cost terms (the scenario's weights, or the paper's approach costs)")
-    ap.add_argument("--coverage-states", type=positive_int, default=None, metavar="N",
-                    help="coverage: seeded states per kind (default 20; --quick 1; --trim 1 of one kind)")
-    ap.add_argument("--coverage-jobs", type=positive_int, default=1, metavar="N",
-                    help="coverage: processes at a time (default 1; more share the cores and inflate wall times)")
-    ap.add_argument("--coverage-tables", type=Path, default=None, metavar="DIR",
-                    help="coverage: folder of the tables the queries use, matched to each kind by the scenario "
-                         "and grid kind they were built for (default: tables/; --trim: tests/data)")
-    ap.add_argument("--coverage-kinds", type=coverage_kinds, default=None, metavar="KIND[,KIND]",
-                    help=f"coverage: only these kinds ({', '.join(k.name for k in KINDS)}; default all)")
-    ap.add_argument("--coverage-variant", type=coverage_variant, default=None, metavar="NAME",
-                    help="coverage: plan (and match tables) with each scenario's variant "
-                         "configs/scenarios/<scenario>_NAME.toml, e.g. wide (the chaser free within ±2 m); the same "
-                         "seeded states")
-    ap.add_argument("--coverage-offline-check", action="store_true",
-                    help="coverage: plan each failed plan's state again with --offline (same budget): a feasible "
-                         "offline plan tells whether its grasps hold only too early or the live search missed one")
-    ap.add_argument("--coverage-queries-only", action="store_true",
-                    help="coverage: the queries on the tables alone, no cold plans (e.g. after building a table)")
+    add_coverage_options(ap)
     ap.add_argument("--optimal-table", type=Path, default=None, metavar="PATH",
                     help="optimal: the table of optimal plans (default tables/flat_spin_I_energy.h5; --trim: the "
                          "golden table, feasibility-only, so the section only says so)")
@@ -185,7 +196,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
                     help=f"run only these sections ({', '.join(SECTIONS)}); the other sections of an existing "
                          "--out file are kept, so one part can be re-measured after a change")
-    return ap.parse_args(argv)
+    args = ap.parse_args(argv)
+    if args.coverage_variant is not None and args.coverage_variant_check is not None:
+        ap.error("--coverage-variant-check plans the bundled scenarios' failures again: not with --coverage-variant")
+    return args
 
 
 def write_json(result: dict[str, Any], out: Path) -> None:
@@ -233,7 +247,7 @@ def coverage_settings_of(args: argparse.Namespace) -> CoverageSettings:
     """The coverage section's settings from the command line's options."""
     return coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables,
                              args.coverage_kinds, not args.coverage_queries_only, args.coverage_variant,
-                             args.coverage_offline_check)
+                             args.coverage_offline_check, args.coverage_variant_check)
 
 
 def main(argv: list[str] | None = None) -> int:

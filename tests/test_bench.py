@@ -797,7 +797,7 @@ def test_an_offline_plan_does_not_overrule_what_says_more():
 
 def test_the_offline_check_plans_only_the_failures_it_can_explain_with_offline(monkeypatch):
     import bench
-    from bench_sections import offline_check
+    from bench_sections import recheck
     from bench_sections.common import settings_for
 
     outcomes = [[], [_check("grasp_torque", "stabilization")], [{"reason": "out of reach", "detail": "…"}],
@@ -815,7 +815,7 @@ def test_the_offline_check_plans_only_the_failures_it_can_explain_with_offline(m
 
     monkeypatch.setattr(coverage, "run_all", fake_run_all)
     monkeypatch.setattr(coverage, "with_windows", lambda records, states, scenario: records)
-    monkeypatch.setattr(offline_check, "run_cli", fake_run_cli)
+    monkeypatch.setattr(recheck, "run_cli", fake_run_cli)
     args = bench.parse_args(["--coverage-kinds", "scenario_I_tumble", "--coverage-states", "4",
                              "--coverage-offline-check", "--coverage-tables", str(ROOT / "tests" / "data")])
     c = coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0, bench.coverage_settings_of(args)))
@@ -823,7 +823,71 @@ def test_the_offline_check_plans_only_the_failures_it_can_explain_with_offline(m
     # the braking and the no-grasp-held failures, not the feasible plan nor the state out of reach
     assert [a[-1] for a in offline_runs] == ["--offline"] * 2
     assert ["offline" in r for r in runs] == [False, True, False, True]
-    assert runs[1]["offline"] == {"exit_code": 0, "wall_s": 3.0, "start_delay_s": 1.5}
+    assert runs[1]["offline"] == {"exit_code": 0, "wall_s": 3.0, "start_delay_s": 1.5, "base_offset_m": None}
     assert c["plans"]["scenario_I_tumble"]["failures_by_kind"] == {"held only too early": 2, "out of reach": 1}
     assert c["offline_check"] is True
     assert not bench.coverage_settings_of(bench.parse_args([])).offline_check  # off unless asked for
+
+
+def test_the_variant_check_plans_every_failure_of_the_state_again_with_the_variant(monkeypatch):
+    import bench
+    from bench_sections import recheck
+    from bench_sections.common import settings_for
+    from bench_sections.report import _coverage
+
+    from planner.box_edge import BOX_EDGE_NOTE
+
+    edge_note = f"{BOX_EDGE_NOTE} (θ_b(0) z = +1.000 m, robot.base_offset_z_m = [-1, 1]): …"
+    outcomes = [([], []), ([_check("grasp_torque", "stabilization")], []),
+                ([{"reason": "out of reach (proven)", "detail": "…"}], []),
+                ([_check("collision", "approach")], [edge_note]), ([{"reason": "exit 70", "detail": "…"}], []),
+                ([{"reason": "over budget", "detail": "131 s"}], [])]
+
+    def fake_run_all(jobs, settings):
+        return [{"feasible_on_time": not reasons, "wall_s": 1.0, "exit_code": 2 if reasons else 0,
+                 "reasons": reasons, "notes": notes} for reasons, notes in outcomes[: len(jobs)]]
+
+    variant_runs: list[list[str]] = []
+
+    def fake_run_cli(args, kill_after_s):  # the variant plans the no-grasp-held state only
+        variant_runs.append(args)
+        held = len(variant_runs) == 3
+        return CliRun(0 if held else 2, 7.0, "", "", {"start_delay_s": 30.0, "base_offset_m": {"x": 0.5, "z": 1.7},
+                                                        "checks": {}} if held else None)
+
+    monkeypatch.setattr(coverage, "run_all", fake_run_all)
+    monkeypatch.setattr(coverage, "with_windows", lambda records, states, scenario: records)
+    monkeypatch.setattr(recheck, "run_cli", fake_run_cli)
+    args = bench.parse_args(["--coverage-kinds", "scenario_I_tumble", "--coverage-states", "6",
+                             "--coverage-variant-check", "wide", "--coverage-tables", str(ROOT / "tests" / "data")])
+    c = coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0, bench.coverage_settings_of(args)))
+    kind = c["plans"]["scenario_I_tumble"]
+    # the braking, the proven out of reach and the no-grasp-held failures: not the feasible plan, the bug, the overrun
+    assert [a[1] for a in variant_runs] == ["configs/scenarios/scenario_I_wide.toml"] * 3
+    planned = [coverage.plan_args("scenario_I", s, 100.0) for s in coverage.kind_states(coverage.KINDS[2], 6, 7)]
+    assert [a[2:] for a in variant_runs] == [b[2:] for b in planned[1:4]]  # the same states, the same options
+    assert ["variant_plan" in r for r in kind["runs"]] == [False, True, True, True, False, False]
+    assert kind["runs"][3]["variant_plan"] == {"exit_code": 0, "wall_s": 7.0, "start_delay_s": 30.0,
+                                               "base_offset_m": [0.5, 1.7]}
+    assert kind["failures_planned_by_variant"] == {"checked": 3, "no grasp held": 1}
+    assert kind["failures_at_box_edge"] == 1
+    assert c["variant_check"] == "wide"
+    header, rows = _coverage(c)
+    assert "failures planned again with the wide variant" in header
+    line = dict(rows)["plans scenario_I_tumble"]
+    assert "1 refused on the box's edge" in line and "the variant plans 1/3 failures (no grasp held 1)" in line
+
+
+def test_the_variant_check_takes_a_plan_command_and_not_a_variant_run():
+    import bench
+    from bench_sections.variant_check import variant_arguments
+
+    assert variant_arguments(["plan", "configs/scenarios/scenario_II.toml", "--attitude", "1,0,0,0"], "wide") == [
+        "plan", "configs/scenarios/scenario_II_wide.toml", "--attitude", "1,0,0,0"]
+    with pytest.raises(ValueError, match="not a plan command"):
+        variant_arguments(["query", "tables/t.h5"], "wide")
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--coverage-variant", "wide", "--coverage-variant-check", "wide"])
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--coverage-variant-check", "nonexistent"])
+    assert bench.coverage_settings_of(bench.parse_args([])).variant_check is None  # off unless asked for

@@ -33,8 +33,9 @@ class CoverageSettings:
     """The coverage section's sizes: seeded states per kind, which kinds (None: all four), the budget (s) of
     each plan and query, the hard kill after budget + ``kill_margin_s`` (s), processes at a time, the tables,
     whether the cold plans run (False: the queries alone, e.g. after a new table), the scenario variant they
-    plan with (None: the bundled scenarios; ``NAME``: ``<scenario>_NAME.toml``), and whether a failed plan's state is
-    planned offline too (:mod:`bench_sections.offline_check`)."""
+    plan with (None: the bundled scenarios; ``NAME``: ``<scenario>_NAME.toml``), whether a failed plan's state is
+    planned offline too (:mod:`bench_sections.offline_check`), and the variant it is planned with too (None: not;
+    :mod:`bench_sections.variant_check`)."""
 
     states: int
     kinds: tuple[str, ...] | None
@@ -45,6 +46,7 @@ class CoverageSettings:
     plans: bool = True
     variant: str | None = None
     offline_check: bool = False
+    variant_check: str | None = None
 
     def scenario_of(self, scenario: str) -> str:
         """The scenario file's stem the section plans ``scenario``'s kinds with."""
@@ -112,17 +114,20 @@ def optimal_settings(quick: bool, trim: bool, table: Path | None, states: int | 
 
 def coverage_settings(quick: bool, trim: bool, states: int | None, jobs: int, tables: Path | None,
                       kinds: tuple[str, ...] | None = None, plans: bool = True,
-                      variant: str | None = None, offline_check: bool = False) -> CoverageSettings:
+                      variant: str | None = None, offline_check: bool = False,
+                      variant_check: str | None = None) -> CoverageSettings:
     """Full: 20 states of each kind (the issue's bar); quick: 1 of each; trim: 1 of one kind, a 2 s budget, the
     golden table (it proves the code path in seconds: the plan ends over budget). ``kinds`` (None: all four, or
     trim's one) and ``plans`` (False: queries only) narrow any mode; ``offline_check`` plans each failure's state
-    offline as well."""
+    offline as well, ``variant_check`` with that scenario variant as well."""
     if trim:
         return CoverageSettings(1 if states is None else states, kinds or ("scenario_II_flat_spin",), 2.0, 10.0, jobs,
-                                GOLDEN_TABLE.parent if tables is None else tables, plans, variant, offline_check)
+                                GOLDEN_TABLE.parent if tables is None else tables, plans, variant, offline_check,
+                                variant_check)
     default_states = 1 if quick else 20
     return CoverageSettings(default_states if states is None else states, kinds, COVERAGE_BUDGET_S, 30.0, jobs,
-                            COVERAGE_TABLES if tables is None else tables, plans, variant, offline_check)
+                            COVERAGE_TABLES if tables is None else tables, plans, variant, offline_check,
+                            variant_check)
 
 
 def settings_for(quick: bool, trim: bool, seed: int, plan_runs: int | None, plan_cap_s: float,

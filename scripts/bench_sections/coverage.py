@@ -26,10 +26,14 @@ from bench_sections.envelope import (
 from bench_sections.failure_kinds import cut_by_the_budget, record_failure_kind
 from bench_sections.offline_check import with_offline
 from bench_sections.reach_windows import with_windows
+from bench_sections.variant_check import KEY as VARIANT_PLAN
+from bench_sections.variant_check import with_variant
+from planner.box_edge import BOX_EDGE_NOTE
 
 SEED_SALT = 20  # the coverage states' seed is (--seed, issue 20, kind)
 SUMMARY_KEYS = ("states", "feasible_on_time", "feasible_fraction", "wall_s", "reasons", "failures_by_first_reason",
-                "failures_by_kind", "cut_by_the_budget", "over_budget", "killed", "reach_edge", "runs")
+                "failures_by_kind", "failures_at_box_edge", "failures_planned_by_variant", "cut_by_the_budget",
+                "over_budget", "killed", "reach_edge", "runs")
 PLAN_P95_BAR_S, QUERY_P95_BAR_S, QUERY_FEASIBLE_BAR = 60.0, 30.0, 0.98
 BAR_STATES = 20  # the issue measures its bars on ≥ 20 states per kind
 
@@ -72,10 +76,27 @@ def summary(records: list[dict[str, Any]]) -> dict[str, Any]:
             "failures_by_first_reason": dict(first.most_common()),
             "failures_by_kind": dict(Counter(record_failure_kind(r).value for r in records
                                              if r["reasons"]).most_common()),
+            "failures_at_box_edge": sum(at_box_edge(r) for r in records if r["reasons"]),
+            "failures_planned_by_variant": planned_by_variant(records),
             "cut_by_the_budget": sum(cut_by_the_budget(r["reasons"]) for r in records),
             "over_budget": sum(any(x["reason"] == OVER_BUDGET for x in r["reasons"]) for r in records),
             "killed": sum(r["exit_code"] is None for r in records), "reach_edge": reach_edge(records),
             "runs": records}
+
+
+def at_box_edge(record: dict[str, Any]) -> bool:
+    """True when the run's refused plan left θ_b(0) on its base-offset box's edge (its note, planner.box_edge)."""
+    return any(note.startswith(BOX_EDGE_NOTE) for note in record.get("notes") or ())
+
+
+def planned_by_variant(records: list[dict[str, Any]]) -> dict[str, int] | None:
+    """Of the failures planned again with the scenario variant (:mod:`bench_sections.variant_check`), how many of
+    each kind its plan verified feasible on time, with ``checked``: how many were planned; None: none checked."""
+    checked = [r for r in records if VARIANT_PLAN in r]
+    if not checked:
+        return None
+    planned = Counter(record_failure_kind(r).value for r in checked if r[VARIANT_PLAN]["exit_code"] == 0)
+    return {"checked": len(checked), **dict(planned.most_common())}
 
 
 def reach_slacks(states: list[EnvelopeState], scenario: str) -> list[float]:
@@ -122,9 +143,11 @@ def run_all(jobs: list[list[str]], settings: Settings) -> list[dict[str, Any]]:
 
 def _plan_records(jobs: list[list[str]], states: list[EnvelopeState], scenario: str, slacks: list[float],
                   settings: Settings) -> list[dict[str, Any]]:
-    """The cold plans' records with their states' reach slacks and windows, and their offline plans if asked for."""
+    """The cold plans' records with their states' reach slacks and windows, and their offline and variant plans if
+    asked for (the variant's after the offline check, which can change a failure's kind)."""
     records = with_windows(with_slacks(run_all(jobs, settings), slacks), states, scenario)
-    return with_offline(records, jobs, settings) if settings.coverage.offline_check else records
+    records = with_offline(records, jobs, settings) if settings.coverage.offline_check else records
+    return with_variant(records, jobs, settings) if settings.coverage.variant_check else records
 
 
 def plan_args(scenario: str, state: EnvelopeState, budget_s: float) -> list[str]:
@@ -184,7 +207,7 @@ def coverage(settings: Settings) -> dict[str, Any]:
         queries[kind.name] = {"table": relative(table), **summary(with_slacks(
             run_all([query_args(cli_path(table), s, c.budget_s) for s in states], settings), slacks))}
     return {"states_per_kind": c.states, "seed": [settings.seed, SEED_SALT], "variant": c.variant,
-            "offline_check": c.offline_check,
+            "offline_check": c.offline_check, "variant_check": c.variant_check,
             "budget_s": c.budget_s,
             "kill_after_s": c.budget_s + c.kill_margin_s, "jobs": c.jobs, "plan_budget_option": plan_takes_budget(),
             "envelope": {"flat_spin": f"spin about the target's major axis (from its inertia) along (cos α, 0, sin α) "

@@ -113,9 +113,19 @@ def _runs(entry: dict[str, Any]) -> str:
     wall = entry["wall_s"]
     kinds = ", ".join(f"{k} {v}" for k, v in entry["failures_by_kind"].items()) or "none"
     cut = f" ({entry['cut_by_the_budget']} cut short by the budget)" if entry["cut_by_the_budget"] else ""
+    edge = f"; {entry['failures_at_box_edge']} refused on the box's edge" if entry.get("failures_at_box_edge") else ""
     return (f"{entry['feasible_on_time']}/{entry['states']} feasible on time; wall p50 {wall['median']:.1f}, "
-            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; failures by kind: {kinds}{cut}"
-            f"{_reach_edge(entry.get('reach_edge'))}")
+            f"p95 {wall['p95']:.1f}, max {wall['max']:.1f} s; failures by kind: {kinds}{cut}{edge}"
+            f"{_by_variant(entry.get('failures_planned_by_variant'))}{_reach_edge(entry.get('reach_edge'))}")
+
+
+def _by_variant(planned: dict[str, int] | None) -> str:
+    """``; the variant plans 5/7 failures (no grasp held 4, braking 1)`` (empty when none was planned again)."""
+    if not planned:
+        return ""
+    kinds = {k: v for k, v in planned.items() if k != "checked"}
+    detail = f" ({', '.join(f'{k} {v}' for k, v in kinds.items())})" if kinds else ""
+    return f"; the variant plans {sum(kinds.values())}/{planned['checked']} failures{detail}"
 
 
 def _reach_edge(edge: dict[str, Any] | None) -> str:
@@ -137,6 +147,7 @@ def _coverage(c: dict[str, Any]) -> tuple[str, list[Row]]:
         rows.append((f"bar {name}", f"{value} ({op} {bar['bar']:g}): {verdict}"
                                     f"{'' if bar['enough_states'] else ' (fewer than 20 states per kind)'}"))
     variant = f", scenario variant {c['variant']}" if c.get("variant") else ""
+    variant += f", failures planned again with the {c['variant_check']} variant" if c.get("variant_check") else ""
     return (f"coverage ({c['states_per_kind']} states per kind, budget {c['budget_s']:g} s, {c['jobs']} at a time"
             f"{variant})", rows)
 
