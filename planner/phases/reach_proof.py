@@ -40,7 +40,7 @@ class ReachProof:
     mass less the reach radius, less ``margin_m`` [m]; > 0 proves the state out of reach. ``start_delay_s``: where
     that smallest distance is [s]. ``margin_m``: what sampling and verify's grasp tolerances take off [m].
     ``radius_m``: the arm's reach radius about the centre of mass [m]; ``window_s``: the start-delay window
-    (earliest, latest) [s].
+    (earliest, latest) [s]; ``least_offset_m``: how far from its station the chaser would have to wait (below).
     """
 
     slack_m: float
@@ -48,6 +48,9 @@ class ReachProof:
     margin_m: float
     radius_m: float
     window_s: tuple[float, float]
+    # the least ‖θ_b(0)‖ [m] (from the station, θ_b(0) = 0, in the orbital plane, whatever the box) at which the wrist
+    # point comes within the radius at some start delay (a certified lower bound); inf: no base offset brings it
+    least_offset_m: float = 0.0
 
     @property
     def proven(self) -> bool:
@@ -60,18 +63,25 @@ class ReachProof:
         return (f"out of reach (proven): at every start delay within [{earliest:g}, {latest:g}] s the grasp's wrist "
                 f"point stays at least {self.slack_m:.3f} m beyond the {self.radius_m:.3f} m the arm reaches from the "
                 f"chaser's centre of mass, wherever in the base-offset box it waits (closest at "
-                f"{self.start_delay_s:g} s)")
+                f"{self.start_delay_s:g} s); {self._offset_needed()}")
+
+    def _offset_needed(self) -> str:
+        """How far from its station the chaser would have to wait for the grasp to come within reach at all."""
+        if not np.isfinite(self.least_offset_m):
+            return "no base offset in the orbital plane brings it within reach"
+        return f"it comes within reach only with the chaser at least {self.least_offset_m:.2f} m from its station"
 
 
 def reach_proof(scenario: Scenario, state: TargetState, step_s: float = SAMPLE_STEP_S) -> ReachProof:
     """The certified reach slack of ``state`` over the scenario's start-delay window (deterministic; milliseconds for a
     fixed grasp, tens of them for one free about an axis)."""
     wrist = wrist_reach(scenario.robot)
-    delays_s, distance_m = wrist_distance_over_window(scenario, state, step_s, wrist)
+    delays_s, wrist_points = _wrist_from_station_com(scenario, state, step_s, wrist)
+    distance_m = _nearest_in_box(scenario, wrist_points)
     margin = _margin_m(scenario, state, wrist, float(np.max(np.diff(delays_s), initial=0.0)))
     k = int(np.argmin(distance_m))
     return ReachProof(float(distance_m[k] - wrist.radius_m - margin), float(delays_s[k]), margin, wrist.radius_m,
-                      scenario.phases.start_delay_window_s)
+                      scenario.phases.start_delay_window_s, _least_offset(wrist_points, wrist.radius_m + margin))
 
 
 def wrist_distance_over_window(scenario: Scenario, state: TargetState, step_s: float = SAMPLE_STEP_S,
@@ -79,6 +89,48 @@ def wrist_distance_over_window(scenario: Scenario, state: TargetState, step_s: f
     """Start delays over the window (the ends included, at most ``step_s`` apart) [s] and, at each, the grasp's wrist
     point's distance from the nearest admissible centre of mass (any base offset of the box, any free-axis angle)
     [m], at the samples (no margin)."""
+    delays, wrist_points = _wrist_from_station_com(scenario, state, step_s, wrist)
+    return delays, _nearest_in_box(scenario, wrist_points)
+
+
+def least_offset_m(scenario: Scenario, state: TargetState, step_s: float = SAMPLE_STEP_S,
+                   wrist: WristReach | None = None, radius_m: float | None = None) -> float:
+    """The least ‖θ_b(0)‖ [m] in the orbital plane, whatever the box, that brings the grasp's wrist point within
+    ``radius_m`` (default the arm's reach radius) of the centre of mass at some sampled start delay and free-axis
+    angle: the base offset moves the centre of mass in x and z only, so a wrist point at (x, y, z) from the station's
+    centre of mass needs ‖(x, z)‖ − √(r² − y²) of it, and none (inf) where |y| > r."""
+    wrist = wrist_reach(scenario.robot) if wrist is None else wrist
+    _, wrist_points = _wrist_from_station_com(scenario, state, step_s, wrist)
+    return _least_offset(wrist_points, wrist.radius_m if radius_m is None else radius_m)
+
+
+def _nearest_in_box(scenario: Scenario, wrist_points: list[Array]) -> Array:
+    """At each sample, the wrist point's distance from the nearest centre of mass the box admits (any free-axis turn)
+    [m]: the box shifts the station's centre of mass by (b_x, 0, b_z)."""
+    (x_lo, x_hi), (z_lo, z_hi) = scenario.base_offset_bounds_m
+    nearest = np.full(len(wrist_points[0]), np.inf)
+    for d in wrist_points:
+        dx, dz = d[:, 0] - np.clip(d[:, 0], x_lo, x_hi), d[:, 2] - np.clip(d[:, 2], z_lo, z_hi)
+        nearest = np.minimum(nearest, np.sqrt(dx ** 2 + d[:, 1] ** 2 + dz ** 2))
+    return nearest
+
+
+def _least_offset(wrist_points: list[Array], radius_m: float) -> float:
+    """:func:`least_offset_m` of wrist points from the station's centre of mass [m] (one ``(n, 3)`` per turn)."""
+    least = np.inf
+    for d in wrist_points:
+        across_sq = radius_m ** 2 - d[:, 1] ** 2
+        within = across_sq >= 0.0
+        if np.any(within):
+            in_plane = np.hypot(d[within, 0], d[within, 2]) - np.sqrt(across_sq[within])
+            least = min(least, float(np.maximum(in_plane, 0.0).min()))
+    return least
+
+
+def _wrist_from_station_com(scenario: Scenario, state: TargetState, step_s: float,
+                            wrist: WristReach | None) -> tuple[Array, list[Array]]:
+    """Start delays over the window (the ends included, at most ``step_s`` apart) [s] and, for each free-axis turn,
+    the grasp's wrist point at the grasp of each from the chaser's centre of mass at θ_b(0) = 0 [m], ``(n, 3)``."""
     sc = scenario
     wrist = wrist_reach(sc.robot) if wrist is None else wrist
     earliest, latest = sc.phases.start_delay_window_s
@@ -86,13 +138,7 @@ def wrist_distance_over_window(scenario: Scenario, state: TargetState, step_s: f
     grasp_s = delays + sc.phases.approach_s + sc.phases.tracking_s
     R_world_grasp, p_world_grasp = sc.target.motion(state, float(grasp_s[-1]) + 1.0).grasp_pose(grasp_s)
     p_wrist_from_com = p_world_grasp - centre_of_mass_m(sc.robot, sc.q_initial)  # θ_b(0) = 0
-    (x_lo, x_hi), (z_lo, z_hi) = sc.base_offset_bounds_m
-    nearest = np.full(len(delays), np.inf)
-    for turn in _free_axis_turns(sc):
-        d = p_wrist_from_com + R_world_grasp @ (turn @ wrist.p_grasp_wrist_m)
-        dx, dz = d[:, 0] - np.clip(d[:, 0], x_lo, x_hi), d[:, 2] - np.clip(d[:, 2], z_lo, z_hi)
-        nearest = np.minimum(nearest, np.sqrt(dx ** 2 + d[:, 1] ** 2 + dz ** 2))
-    return delays, nearest
+    return delays, [p_wrist_from_com + R_world_grasp @ (turn @ wrist.p_grasp_wrist_m) for turn in _free_axis_turns(sc)]
 
 
 def _free_axis_turns(scenario: Scenario) -> list[Array]:

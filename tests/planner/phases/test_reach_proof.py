@@ -19,7 +19,7 @@ from planner.model.wrist_reach import centre_of_mass_m, wrist_reach
 from planner.phases import reach_proof as proof_module
 from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import reach_scan
-from planner.phases.reach_proof import reach_proof, wrist_distance_over_window
+from planner.phases.reach_proof import _least_offset, least_offset_m, reach_proof, wrist_distance_over_window
 from planner.verify.checks import GRASP_ORIENTATION_TOL_RAD, GRASP_POSITION_TOL_M
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -64,6 +64,10 @@ def test_a_still_target_gives_the_closed_form_slack(scenarios):
             assert proof.margin_m == pytest.approx(tolerance + free_angle, abs=1e-15)  # a still target: no motion
             assert proof.slack_m == pytest.approx(nearest - wrist_reach(sc.robot).radius_m - proof.margin_m,
                                                   abs=1e-12)
+            # the least station offset: the wrist point's in-plane distance less the disc its height leaves
+            reach = wrist_reach(sc.robot).radius_m + proof.margin_m
+            need = np.hypot(rel[:, 0], rel[:, 2]) - np.sqrt(reach ** 2 - rel[:, 1] ** 2)
+            assert proof.least_offset_m == pytest.approx(max(0.0, need.min()), abs=1e-12)
 
 
 @pytest.mark.parametrize("name, state", [("scenario_I", FLAT_SPIN_I_PROVEN), ("scenario_II", FLAT_SPIN_II_PROVEN),
@@ -78,6 +82,8 @@ def test_the_certified_slack_is_below_every_finer_sample(scenarios, monkeypatch,
     finest = float(fine.min() - proof.radius_m)
     assert proof.slack_m <= finest  # a bound: the true minimum lies below every sample, and above the bound
     assert proof.slack_m >= finest - 2 * proof.margin_m  # and not a vacuous one
+    least = least_offset_m(sc, state, step_s=0.005)  # the arm's own radius, 10x finer samples
+    assert proof.least_offset_m <= least <= proof.least_offset_m + 2 * proof.margin_m
 
 
 def test_the_proven_states_are_out_of_reach(scenarios):
@@ -86,6 +92,9 @@ def test_the_proven_states_are_out_of_reach(scenarios):
         proof = reach_proof(scenarios[name], state)
         assert proof.proven and proof.slack_m > 0.05
         assert proof.reason().startswith("out of reach (proven): at every start delay within [0, 90] s")
+        # every offset of norm ≤ 1 m lies in the ±1 m box, which the proof rules out: the least one lies beyond it
+        assert 1.0 < proof.least_offset_m < np.inf
+        assert f"at least {proof.least_offset_m:.2f} m from its station" in proof.reason()
     for sc in scenarios.values():  # the default states plan feasible: nothing proves them out of reach
         assert not reach_proof(sc, sc.target_state.as_state()).proven
 
@@ -141,3 +150,16 @@ def test_at_the_reach_radius_itself_the_proof_turns_a_millimetre_either_side(sce
     farther, nearer = reach_proof(pinned(x_touching - 1e-3), still), reach_proof(pinned(x_touching + 1e-3), still)
     assert farther.proven and farther.slack_m == pytest.approx(1e-3, abs=1e-9)
     assert not nearer.proven and nearer.slack_m == pytest.approx(-1e-3, abs=1e-9)
+
+
+@pytest.mark.parametrize("points, radius, least", [
+    ([[3.0, 0.0, 4.0]], 5.0, 0.0),                    # on the sphere: touching, no offset needed
+    ([[6.0, 0.0, 8.0]], 5.0, 5.0),                    # 10 m away in the plane: 5 m to come
+    ([[6.0, 3.0, 8.0]], 5.0, 6.0),                    # 3 m out of the plane leaves a disc of radius 4
+    ([[6.0, 5.0, 8.0]], 5.0, 10.0),                   # exactly the radius out of the plane: the disc is a point
+    ([[6.0, 5.0 + 1e-9, 8.0]], 5.0, np.inf),          # beyond it: no offset in the plane brings it
+    ([[0.0, 4.0, 0.0], [9.0, 0.0, 0.0]], 5.0, 0.0),   # the nearest sample decides
+])
+def test_the_least_offset_of_wrist_points_in_closed_form(points, radius, least):
+    assert _least_offset([np.asarray(points)], radius) == pytest.approx(least, abs=1e-12)
+    assert _least_offset([np.asarray(points)[::-1], np.asarray(points)], radius) == pytest.approx(least, abs=1e-12)
