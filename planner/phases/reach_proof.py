@@ -50,7 +50,7 @@ class ReachProof:
     window_s: tuple[float, float]
     # the least ‖θ_b(0)‖ [m] (from the station, θ_b(0) = 0, in the orbital plane, whatever the box) at which the wrist
     # point comes within the radius at some start delay (a certified lower bound); inf: no base offset brings it
-    least_offset_m: float = 0.0
+    least_offset_m: float
 
     @property
     def proven(self) -> bool:
