@@ -658,7 +658,7 @@ def test_the_reach_section_tells_the_proven_states_apart_and_draws_them(tmp_path
     figure draws each state out of reach at the scenario's settings."""
     from dataclasses import replace
 
-    from bench_sections.common import coverage_settings, settings_for
+    from bench_sections.common import coverage_settings, load_scenario_named, settings_for
     from bench_sections.reach import reach
 
     cov = coverage_settings(False, False, 3, 1, None, ("scenario_I_flat_spin",))
@@ -666,9 +666,30 @@ def test_the_reach_section_tells_the_proven_states_apart_and_draws_them(tmp_path
     r = reach(settings)
     e = r["scenario_I_flat_spin"]["scenario"]
     assert e["indices"] == [2] and e["proven_indices"] == [2] and e["slack_m"][0] > 0.5
+    # how far the chaser would have to wait: the proof's, beyond the ±1 m box (every offset of norm ≤ 1 m lies in it)
+    from planner.phases.reach_proof import reach_proof
+
+    state = coverage.kind_states(coverage.KINDS[0], 3, 8)[2].target_state()
+    least = reach_proof(load_scenario_named("scenario_I"), state).least_offset_m
+    assert e["proven_least_offset_m"] == [least] and least > 1.0
     figure = tmp_path / "fig" / "reach_slack.png"
     assert r["figure"] == "reach_slack.png"  # a folder outside the repository: no machine path in the JSON
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_reach_digest_says_how_far_the_chaser_would_have_to_wait():
+    from bench_sections.report import _reach
+
+    entry = {"out_of_reach": 3, "states": 20, "proven": 3, "proven_least_offset_m": [2.004, 1.138, None]}
+    rows = dict(_reach({"states_per_kind": 20, "scenario_I_flat_spin": {"scenario": entry}})[1])
+    assert rows["scenario_I_flat_spin scenario"] == (
+        "3/20 out of reach, 3 of them proven; the chaser would have to wait at least 1.14–2.00 m from its station, 1 "
+        "within reach at no base offset")
+    only_never = {**entry, "proven": 1, "proven_least_offset_m": [None]}
+    rows = dict(_reach({"states_per_kind": 20, "k": {"scenario": only_never}})[1])
+    assert rows["k scenario"].endswith("1 of them proven; 1 within reach at no base offset")
+    none_proven = {**entry, "proven": 0, "proven_least_offset_m": []}
+    assert dict(_reach({"states_per_kind": 20, "k": {"scenario": none_proven}})[1])["k scenario"].endswith("proven")
 
 
 def test_the_reach_what_if_of_a_2_m_box_is_the_wide_variants_box():

@@ -173,10 +173,23 @@ def _optimal(o: dict[str, Any]) -> tuple[str, list[Row]]:
 
 
 def _reach(r: dict[str, Any]) -> tuple[str, list[Row]]:
-    rows = [(f"{kind} {name}", f"{e['out_of_reach']}/{e['states']} out of reach, {e.get('proven', 0)} of them proven")
+    rows = [(f"{kind} {name}", f"{e['out_of_reach']}/{e['states']} out of reach, {e.get('proven', 0)} of them proven"
+                               f"{_least_offsets(e.get('proven_least_offset_m'))}")
             for kind, entry in r.items() if isinstance(entry, dict) and kind not in ("what_ifs",)
             for name, e in entry.items()]
     return f"reach ({r['states_per_kind']} states per kind, the scan of meeting times only)", rows
+
+
+def _least_offsets(offsets: list[float | None] | None) -> str:
+    """``; the chaser would have to wait at least 1.14–2.00 m from its station`` for the proven states to come within
+    reach at all (``, 1 within reach at no base offset`` for those none brings; empty without a proven state)."""
+    if not offsets:
+        return ""
+    finite = [x for x in offsets if x is not None]
+    parts = [f"the chaser would have to wait at least {min(finite):.2f}–{max(finite):.2f} m from its station"
+             ] if finite else []
+    never = len(offsets) - len(finite)
+    return "; " + ", ".join([*parts, *([f"{never} within reach at no base offset"] if never else [])])
 
 
 UNITS = {"largest_attitude_deg": "° attitude", "largest_rate_deg_s": "°/s rate", "largest_spin_axis_deg": "° spin axis"}
