@@ -49,4 +49,4 @@ def box_edge_note(bounds_m: Box, base_offset_m: ArrayLike) -> str | None:
         return None
     where = "; ".join(e.describe() for e in edges)
     return (f"{BOX_EDGE_NOTE} ({where}): the grasp may lie beyond where the chaser may wait; a wider box is the "
-            "scenario's to allow (e.g. the *_wide variants)")
+            "scenario's to allow (the bundled *_wide variants allow ±2 m)")
