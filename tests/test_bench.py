@@ -685,9 +685,10 @@ def test_the_reach_digest_says_how_far_the_chaser_would_have_to_wait():
     assert rows["scenario_I_flat_spin scenario"] == (
         "3/20 out of reach, 3 of them proven; the chaser would have to wait at least 1.14–2.00 m from its station, 1 "
         "within reach at no base offset")
-    only_never = {**entry, "proven": 1, "proven_least_offset_m": [None]}
-    rows = dict(_reach({"states_per_kind": 20, "k": {"scenario": only_never}})[1])
-    assert rows["k scenario"].endswith("1 of them proven; 1 within reach at no base offset")
+    for never in (None, math.inf):  # the section's inf, and the null its JSON holds
+        only_never = {**entry, "proven": 1, "proven_least_offset_m": [never]}
+        rows = dict(_reach({"states_per_kind": 20, "k": {"scenario": only_never}})[1])
+        assert rows["k scenario"].endswith("1 of them proven; 1 within reach at no base offset")
     none_proven = {**entry, "proven": 0, "proven_least_offset_m": []}
     assert dict(_reach({"states_per_kind": 20, "k": {"scenario": none_proven}})[1])["k scenario"].endswith("proven")
 

@@ -13,7 +13,6 @@ settings (:mod:`bench_sections.reach_figure`).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -43,7 +42,8 @@ class OutOfReachState:
 def reach(settings: Settings) -> dict[str, Any]:
     """Per kind: how many of the coverage states are out of reach under each what-if, which (indices), how many of
     them the reach proof settles, each one's certified slack [m], and how far from its station the chaser would have
-    to wait for each proven one's grasp to come within reach at all [m] (None: no base offset brings it)."""
+    to wait for each proven one's grasp to come within reach at all [m] (inf, null in the JSON: no base offset
+    brings it)."""
     from planner.phases.approach import approach_spline
     from planner.phases.approach_guess import reach_scan
 
@@ -67,7 +67,7 @@ def reach(settings: Settings) -> dict[str, Any]:
                            "proven": sum(scans[i].proven_out_of_reach for i in unreachable),
                            "proven_indices": [i for i in unreachable if scans[i].proven_out_of_reach],
                            "slack_m": [scans[i].proof.slack_m for i in unreachable],
-                           "proven_least_offset_m": [_finite_or_none(scans[i].proof.least_offset_m)
+                           "proven_least_offset_m": [scans[i].proof.least_offset_m
                                                      for i in unreachable if scans[i].proven_out_of_reach]}
         out[kind.name] = entry
     if settings.reach_plot is not None:
@@ -75,8 +75,3 @@ def reach(settings: Settings) -> dict[str, Any]:
 
         out["figure"] = relative(draw_reach_slack(curves, settings.reach_plot, settings.seed))
     return out
-
-
-def _finite_or_none(value: float) -> float | None:
-    """JSON has no infinity: a value no base offset reaches is written as null."""
-    return value if math.isfinite(value) else None

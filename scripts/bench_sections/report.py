@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 Row = tuple[str, str]
@@ -185,7 +186,7 @@ def _least_offsets(offsets: list[float | None] | None) -> str:
     reach at all (``, 1 within reach at no base offset`` for those none brings; empty without a proven state)."""
     if not offsets:
         return ""
-    finite = [x for x in offsets if x is not None]
+    finite = [x for x in offsets if x is not None and math.isfinite(x)]  # inf in memory, null once written
     parts = [f"the chaser would have to wait at least {min(finite):.2f}–{max(finite):.2f} m from its station"
              ] if finite else []
     never = len(offsets) - len(finite)
