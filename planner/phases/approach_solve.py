@@ -299,8 +299,9 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     :func:`solve_approach`'s."""
     p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
+    guess_s = float(w0[problem.decision.slice("start_delay_s").start])
     lbw, ubw = _not_before(problem, problem.lbw if lbw is None else lbw, problem.ubw if ubw is None else ubw,
-                           deadline.earliest_start_s())
+                           deadline.start_bound_s(guess_s))
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
     lbw, ubw = one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
                                          lbg, ubg)
@@ -339,7 +340,8 @@ def start_deadline(problem: ApproachProblem, ubw: Array, deadline: Deadline) -> 
 
 def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: float) -> tuple[Array, Array]:
     """Bounds ``(lbw, ubw)`` with the start delay no earlier than ``earliest_s`` [s] (a live plan's answer cannot come
-    sooner) but within its upper bound (then pinned there: such a solve ends at once, :func:`start_deadline`)."""
+    sooner: :meth:`~planner.deadline.Deadline.start_bound_s`) but within its upper bound (then pinned there: such a
+    solve ends at once, :func:`start_deadline`)."""
     if not np.isfinite(earliest_s):
         return lbw, ubw
     delay = problem.decision.slice("start_delay_s").start

@@ -235,6 +235,10 @@ class _SwitchedDeadline:
     def earliest_start_s() -> float:
         return -math.inf
 
+    @staticmethod
+    def start_bound_s(guess_s: float) -> float:
+        return -math.inf
+
     def in_time_for(self, start_delay_s: float, lead_s: float | None = None) -> _SwitchedDeadline:
         return self
 
