@@ -299,9 +299,9 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     :func:`solve_approach`'s."""
     p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
-    guess_s = float(w0[problem.decision.slice("start_delay_s").start])
-    lbw, ubw = _not_before(problem, problem.lbw if lbw is None else lbw, problem.ubw if ubw is None else ubw,
-                           deadline.start_bound_s(guess_s))
+    lbw, ubw = problem.lbw if lbw is None else lbw, problem.ubw if ubw is None else ubw
+    delay = problem.decision.slice("start_delay_s").start
+    lbw, ubw = _not_before(problem, lbw, ubw, deadline.start_bound_s(float(np.clip(w0[delay], lbw[delay], ubw[delay]))))
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
     lbw, ubw = one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
                                          lbg, ubg)

@@ -127,7 +127,7 @@ def test_a_scanned_guess_meeting_well_before_the_answer_is_not_started_from(scen
     def recorded(problem, state, w0, scale, lbw=None, ubw=None, **kwargs):
         bound = approach_solve._not_before(problem, problem.lbw if lbw is None else lbw,
                                            problem.ubw if ubw is None else ubw,
-                                           kwargs["deadline"].earliest_start_s())[0][delay]
+                                           kwargs["deadline"].start_bound_s(float(w0[delay])))[0][delay]
         started.append((float(w0[delay]), float(bound)))
         return SimpleNamespace(success=False, iterations=1, start_guess=None)
 

@@ -81,3 +81,27 @@ def test_the_same_state_solved_a_second_later_gives_the_same_approach_to_the_bit
 
     np.testing.assert_array_equal(solved(2.0), solved(2.9))
     assert not np.array_equal(solved(2.0, steady=False), solved(2.9, steady=False))
+
+
+def test_a_start_beyond_its_bounds_is_bounded_from_where_the_nlp_starts(monkeypatch):
+    """A starting point whose start delay lies past the NLP's upper bound (90 s) starts at that bound: the lower bound
+    is 20 s before it (70 s), not 20 s before the point given (180 s), which would pin the start at the window's end."""
+    scenario = load_scenario(ROOT / "configs" / "scenarios" / "scenario_I.toml")
+    problem = Planner(scenario).approach
+    delay = problem.decision.slice("start_delay_s").start
+    bounds: list[float] = []
+
+    class Recorded(Exception):
+        pass
+
+    def recorded(problem, lbw, ubw, earliest_s):
+        bounds.append(earliest_s)
+        raise Recorded
+
+    monkeypatch.setattr(approach_solve, "_not_before", recorded)
+    live = _live(monkeypatch, 10.0)
+    w0 = np.zeros(problem.n_w)
+    w0[delay] = problem.ubw[delay] + 110.0
+    with pytest.raises(Recorded):
+        approach_solve._solve_once(problem, scenario.target_state.as_state(), w0, 1.0, deadline=live)
+    assert bounds == [problem.ubw[delay] - STEADY_REACH_S] and problem.ubw[delay] == 90.0
