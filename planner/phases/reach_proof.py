@@ -93,17 +93,6 @@ def wrist_distance_over_window(scenario: Scenario, state: TargetState, step_s: f
     return delays, _nearest_in_box(scenario, wrist_points)
 
 
-def least_offset_m(scenario: Scenario, state: TargetState, step_s: float = SAMPLE_STEP_S,
-                   wrist: WristReach | None = None, radius_m: float | None = None) -> float:
-    """The least ‖θ_b(0)‖ [m] in the orbital plane, whatever the box, that brings the grasp's wrist point within
-    ``radius_m`` (default the arm's reach radius) of the centre of mass at some sampled start delay and free-axis
-    angle: the base offset moves the centre of mass in x and z only, so a wrist point at (x, y, z) from the station's
-    centre of mass needs ‖(x, z)‖ − √(r² − y²) of it, and none (inf) where |y| > r."""
-    wrist = wrist_reach(scenario.robot) if wrist is None else wrist
-    _, wrist_points = _wrist_from_station_com(scenario, state, step_s, wrist)
-    return _least_offset(wrist_points, wrist.radius_m if radius_m is None else radius_m)
-
-
 def _nearest_in_box(scenario: Scenario, wrist_points: list[Array]) -> Array:
     """At each sample, the wrist point's distance from the nearest centre of mass the box admits (any free-axis turn)
     [m]: the box shifts the station's centre of mass by (b_x, 0, b_z)."""
@@ -116,7 +105,10 @@ def _nearest_in_box(scenario: Scenario, wrist_points: list[Array]) -> Array:
 
 
 def _least_offset(wrist_points: list[Array], radius_m: float) -> float:
-    """:func:`least_offset_m` of wrist points from the station's centre of mass [m] (one ``(n, 3)`` per turn)."""
+    """The least ‖θ_b(0)‖ [m] in the orbital plane, whatever the box, that brings one of ``wrist_points`` (from the
+    station's centre of mass [m], one ``(n, 3)`` per free-axis turn) within ``radius_m`` of the centre of mass: the
+    base offset moves the centre of mass in x and z only, so a point at (x, y, z) needs ‖(x, z)‖ − √(r² − y²) of it,
+    and none (inf) where |y| > r."""
     least = np.inf
     for d in wrist_points:
         across_sq = radius_m ** 2 - d[:, 1] ** 2

@@ -19,7 +19,7 @@ from planner.model.wrist_reach import centre_of_mass_m, wrist_reach
 from planner.phases import reach_proof as proof_module
 from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import reach_scan
-from planner.phases.reach_proof import _least_offset, least_offset_m, reach_proof, wrist_distance_over_window
+from planner.phases.reach_proof import _least_offset, reach_proof, wrist_distance_over_window
 from planner.verify.checks import GRASP_ORIENTATION_TOL_RAD, GRASP_POSITION_TOL_M
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -82,7 +82,8 @@ def test_the_certified_slack_is_below_every_finer_sample(scenarios, monkeypatch,
     finest = float(fine.min() - proof.radius_m)
     assert proof.slack_m <= finest  # a bound: the true minimum lies below every sample, and above the bound
     assert proof.slack_m >= finest - 2 * proof.margin_m  # and not a vacuous one
-    least = least_offset_m(sc, state, step_s=0.005)  # the arm's own radius, 10x finer samples
+    _, wrist_points = proof_module._wrist_from_station_com(sc, state, 0.005, None)
+    least = _least_offset(wrist_points, proof.radius_m)  # the arm's own radius, 10x finer samples
     assert proof.least_offset_m <= least <= proof.least_offset_m + 2 * proof.margin_m
 
 

@@ -72,11 +72,11 @@ def test_the_same_state_solved_a_second_later_gives_the_same_approach_to_the_bit
     w0 = approach_solve.decision_vector(guess)
 
     def solved(since_s: float, steady: bool = True) -> np.ndarray:
-        live = _live(monkeypatch, since_s)
-        if not steady:
-            monkeypatch.setattr(Deadline, "start_bound_s", lambda self, guess_s: self.earliest_start_s())
-        app = approach_solve._solve_once(problem, state, w0, 1.0, cold=True, max_iterations=60, deadline=live)
-        monkeypatch.undo()
+        with monkeypatch.context() as patched:  # this solve's clock (and rule) only
+            live = _live(patched, since_s)
+            if not steady:
+                patched.setattr(Deadline, "start_bound_s", lambda self, guess_s: self.earliest_start_s())
+            app = approach_solve._solve_once(problem, state, w0, 1.0, cold=True, max_iterations=60, deadline=live)
         return np.concatenate([app.params, app.base_offset_m, [app.start_delay_s]])
 
     np.testing.assert_array_equal(solved(2.0), solved(2.9))
