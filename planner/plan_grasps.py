@@ -6,9 +6,10 @@ scanned guesses (other meeting times). While another grasp remains, each is scre
 NLP, then the full one from its answer, must be feasible within :data:`SCREEN_BUDGET` iterations each; a grasp
 that passes has its stabilization (within :data:`STABILIZATION_BUDGET` iterations in all). A grasp screened
 out is set aside, and the grasps set aside get that budgeted stabilization only when no later grasp
-stabilized. When none succeeds, the first grasp's stabilization is solved again without the budget, so the
-plan is never worse than from the first grasp alone, unless verify refuses that grasp before it is braked (then
-no braking can make the plan feasible, and the unsolved smooth stop is its answer). A warm plan keeps its grasp.
+stabilized. When none succeeds, the first grasp's stabilization goes on without the budget from where its budgeted
+solve ended (started again, IPOPT would retrace its iterates) until it succeeds or stalls, unless verify refuses that
+grasp before it is braked (no braking can then make the plan feasible: the unsolved smooth stop is its answer). A warm
+plan keeps its grasp.
 Once the plan's deadline has passed (:mod:`planner.deadline`) no further grasp or solve is started: the last grasp
 tried is the answer, and the plan's notes say so.
 """
@@ -22,11 +23,11 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.config.scenario import Scenario
 from planner.deadline import ANSWER_LEAD_S, NO_DEADLINE, START_LEAD_S, Deadline
 from planner.grasp_candidate import GraspCandidate, PhasePlanner, accumulated
 from planner.grasp_holds import RATE_DEMAND_TOLERATED, why_unheld
 from planner.model.target import TargetMotion, TargetState
+from planner.nlp.feasibility_stop import StallRule
 from planner.nlp.outcome import SolveOutcome
 from planner.out_of_reach import ReachableOnlyTooEarly
 from planner.phases.approach import ApproachSolution
@@ -34,7 +35,7 @@ from planner.phases.approach_bounds import AS_SOLVED, ApproachBounds
 from planner.phases.approach_guess import MIN_SEPARATION_S, ScanOnDemand
 from planner.phases.approach_rates import lowered_rates
 from planner.phases.approach_solve import COLD_START_ITERATIONS, TriedGrasp, solve_approach, solve_approach_from_base
-from planner.phases.approach_start import base_offset_grid
+from planner.phases.approach_start import BASE_OFFSET_GAP_M, other_base_offsets
 from planner.phases.scan_in_time import scan_in_time
 from planner.phases.stabilization import StabilizationSolution
 from planner.phases.tracking import TrackingResult
@@ -65,16 +66,13 @@ APPROACH_RETRY_MIN = 60
 # tried: free, the NLP drifted back to the grasp that had just failed (scenario II: grasps at 69.9, 70.0 and 68.9 s from
 # guesses 6 s apart). The first approach stays free: boxed, scenario I's default state found no approach at all
 MEETING_TIME_BOX_S = MIN_SEPARATION_S / 2
-# once its scanned meeting times are spent, a cold plan tries the chaser waiting elsewhere in its base-offset box:
-# θ_b(0) held near each bound and the middle of each axis (a 3 × 3 grid), farthest from the first grasp's first (a
-# nearby base repeats the geometry that failed), skipping those within BASE_OFFSET_GAP_M of a grasp tried: where the
-# chaser waits decides where the braked target swings
-BASE_OFFSETS_PER_AXIS = 3
-BASE_OFFSET_GAP_M = 0.25
 # scanned guesses an approach from another base offset starts from (within COLD_START_ITERATIONS), and how far from
 # that offset θ_b(0) may end [m] per axis (half the grid's spacing or less: the next offset is another region)
 BASE_OFFSET_STARTS = 1
 BASE_OFFSET_BOX_M = 0.4
+# the first grasp's last solve, resumed where its budgeted solve ended, is given up once its least violation has not
+# halved over 50 iterations (from its 50th on; never below a 1e-3 violation, which a costed braking may leave a while)
+RESUMED_STALL = StallRule(after=50, over=50, ratio=0.5, least_so_far=True, floor=1e-3)
 # an approach solve that ended so made no NLP start: its scanned meeting times were none, or none in time
 NO_START = frozenset({SolveOutcome.NO_GUESS_IN_TIME, SolveOutcome.NO_GUESS_LEFT, SolveOutcome.NO_PINNED_START})
 
@@ -82,14 +80,6 @@ NO_START = frozenset({SolveOutcome.NO_GUESS_IN_TIME, SolveOutcome.NO_GUESS_LEFT,
 def untightened_speed_scale() -> NDArray[np.float64]:
     """The scale of the approach's tracking-rate bounds, per tracking segment, before any is tightened: all 1."""
     return np.ones(len(TRACKING_NODES))
-
-
-def other_base_offsets(scenario: Scenario, first_m: Array) -> list[Array]:
-    """θ_b(0) [m] (x, z) of the grid over the scenario's base-offset box, farthest from ``first_m`` first (ties: in
-    grid order), those within :data:`BASE_OFFSET_GAP_M` of it left out."""
-    grid = base_offset_grid(scenario, BASE_OFFSETS_PER_AXIS)
-    away = [b for b in grid if np.linalg.norm(b - first_m) >= BASE_OFFSET_GAP_M]
-    return sorted(away, key=lambda b: -float(np.linalg.norm(b - first_m)))
 
 
 def approach_retry_budget(first_iterations: int) -> int:
@@ -113,6 +103,7 @@ class GraspSearch:
         self._tried_offsets: list[Array] = []  # θ_b(0) of the grasps tried so far [m]
         self._next_guess = 0  # the scanned guess the next retry starts from (cold plans)
         self._approach_ends: list[SolveOutcome] = []  # how each approach solve of this search ended
+        self._first_braked: StabilizationSolution | None = None  # the first grasp's last budgeted stabilization
         self.approach_s = 0.0  # NLP time, tracking-rate re-solves included [s]
         self.stabilization_s = 0.0  # the phase's wall time: NLP builds (if new) and solves [s]
 
@@ -148,6 +139,7 @@ class GraspSearch:
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
             last = candidate, self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
+            self._first_braked = last[1] if candidate is first else self._first_braked
             if last[1].success or budget is None or self.deadline.passed:
                 return self._answer(*last)
             if last[1].status == SolveOutcome.SCREENED_OUT:
@@ -158,6 +150,7 @@ class GraspSearch:
             if self.deadline.passed:
                 break
             last = candidate, self._stabilize(candidate, STABILIZATION_BUDGET)
+            self._first_braked = last[1] if candidate is first else self._first_braked
             if last[1].success:
                 return last
             self._note_failure(*last, "")
@@ -165,10 +158,18 @@ class GraspSearch:
             return self._answer(*last)
         if self._only_too_early() or self._refused(first):
             return self._unbraked(first, whole, t_start)
-        # a budgeted failure is never the answer: the first grasp gets its whole solve
+        return self._answer(first, self._resumed(first))
+
+    def _resumed(self, first: GraspCandidate) -> StabilizationSolution:
+        """The first grasp's stabilization without the budget, once no other grasp stabilized: from where its budgeted
+        solve ended (the full NLP, warm; from the start, the same IPOPT path would be solved twice), given up once
+        stalled (:data:`RESUMED_STALL`); cold when it had no budgeted solve."""
+        braked = self._first_braked
+        resume = braked.params if braked is not None and braked.iterations > 0 else None
         self.notes.append("no other grasp stabilized within the budget: the first grasp's stabilization is solved "
-                          "again without it")
-        return self._answer(first, self._stabilize(first, None))
+                          + ("without the budget" if resume is None
+                             else "on from where its budgeted solve ended, without the budget"))
+        return self._stabilize(first, None, resume=resume)
 
     def _unbraked(self, first: GraspCandidate, whole: ScanOnDemand,
                   t_start: float) -> tuple[GraspCandidate, StabilizationSolution]:
@@ -301,18 +302,19 @@ class GraspSearch:
         return f"{app.status}" + (f"; stopped {START_LEAD_S:g} s before the latest start its meeting time allows"
                                   if cut else "")
 
-    def _stabilize(self, candidate: GraspCandidate, budget: int | None,
-                   screen: int | None = None) -> StabilizationSolution:
+    def _stabilize(self, candidate: GraspCandidate, budget: int | None, screen: int | None = None,
+                   resume: Array | None = None) -> StabilizationSolution:
         """The stabilization from ``candidate`` (this plan's warm start, iteration budget, screen and deadline; a
         live plan's ends :data:`~planner.deadline.ANSWER_LEAD_S` before ``candidate``'s approach starts: braked later,
-        the plan would answer after its own start)."""
+        the plan would answer after its own start); ``resume``: the parameters an earlier solve of this grasp ended
+        at, to go on from, given up once stalled (:data:`RESUMED_STALL`)."""
         in_time = self.deadline.in_time_for(candidate.app.start_delay_s)
         if in_time.passed:  # no NLP is built or solved: the smooth stop a cold solve starts from, unsolved
             result = candidate.unbraked(SolveOutcome.OUT_OF_TIME)
         else:
             t0 = time.perf_counter()
-            result = candidate.stabilize(self.warm.stabilization_params if self.warm is not None else None, budget,
-                                         screen, in_time)
+            warm = resume if resume is not None or self.warm is None else self.warm.stabilization_params
+            result = candidate.stabilize(warm, budget, screen, in_time, None if resume is None else RESUMED_STALL)
             self.stabilization_s += time.perf_counter() - t0
         if result.status == SolveOutcome.OUT_OF_TIME and in_time is not self.deadline:
             self.notes.append(f"the braking from the grasp at t = {candidate.grasp_time_s:.1f} s stopped "

@@ -20,6 +20,13 @@ from planner.model.target import TargetMotion
 
 Array = NDArray[np.float64]
 
+# once its scanned meeting times are spent, a cold plan tries the chaser waiting elsewhere in its base-offset box:
+# θ_b(0) held near each bound and the middle of each axis (a 3 × 3 grid), farthest from the first grasp's first (a
+# nearby base repeats the geometry that failed), skipping those within BASE_OFFSET_GAP_M of a grasp tried: where the
+# chaser waits decides where the braked target swings
+BASE_OFFSETS_PER_AXIS = 3
+BASE_OFFSET_GAP_M = 0.25
+
 
 def base_offset_grid(scenario: Scenario, per_axis: int) -> list[Array]:
     """θ_b(0) [m] (x, z) at ``per_axis`` evenly spaced values of each axis of the scenario's base-offset box, bounds
@@ -27,6 +34,14 @@ def base_offset_grid(scenario: Scenario, per_axis: int) -> list[Array]:
     (x_lo, x_hi), (z_lo, z_hi) = scenario.base_offset_bounds_m
     return [np.array([x, z]) for x in np.unique(np.linspace(x_lo, x_hi, per_axis))
             for z in np.unique(np.linspace(z_lo, z_hi, per_axis))]
+
+
+def other_base_offsets(scenario: Scenario, first_m: Array) -> list[Array]:
+    """θ_b(0) [m] (x, z) of the grid over the scenario's base-offset box, farthest from ``first_m`` first (ties: in
+    grid order), those within :data:`BASE_OFFSET_GAP_M` of it left out."""
+    grid = base_offset_grid(scenario, BASE_OFFSETS_PER_AXIS)
+    away = [b for b in grid if np.linalg.norm(b - first_m) >= BASE_OFFSET_GAP_M]
+    return sorted(away, key=lambda b: -float(np.linalg.norm(b - first_m)))
 
 
 def starts_elsewhere_in_box(scenario: Scenario, starts: list[Array], per_axis: int) -> list[list[Array]]:
