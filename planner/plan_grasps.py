@@ -139,7 +139,8 @@ class GraspSearch:
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
             last = candidate, self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
-            self._first_braked = last[1] if candidate is first else self._first_braked
+            if candidate is first:  # the last resort goes on from here (_resumed)
+                self._first_braked = last[1]
             if last[1].success or budget is None or self.deadline.passed:
                 return self._answer(*last)
             if last[1].status == SolveOutcome.SCREENED_OUT:
@@ -150,7 +151,8 @@ class GraspSearch:
             if self.deadline.passed:
                 break
             last = candidate, self._stabilize(candidate, STABILIZATION_BUDGET)
-            self._first_braked = last[1] if candidate is first else self._first_braked
+            if candidate is first:
+                self._first_braked = last[1]
             if last[1].success:
                 return last
             self._note_failure(*last, "")

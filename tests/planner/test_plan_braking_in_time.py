@@ -24,7 +24,7 @@ class _Grasp:
         self.grasp_time_s = START_S + 15.0
         self.status, self.deadlines = status, []
 
-    def stabilize(self, warm, budget, screen, deadline):
+    def stabilize(self, warm, budget, screen, deadline, stall=None):
         self.deadlines.append(deadline)
         return SimpleNamespace(status=self.status, success=self.status == "stand-in ok")
 
