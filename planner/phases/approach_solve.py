@@ -299,9 +299,7 @@ def _solve_once(problem: ApproachProblem, state: TargetState, w0: Array, trackin
     :func:`solve_approach`'s."""
     p = problem.parameter_layout.pack({"attitude_wxyz": state.attitude_wxyz,
                                        "omega_body_rad_s": state.omega_body_rad_s})
-    lbw, ubw = problem.lbw if lbw is None else lbw, problem.ubw if ubw is None else ubw
-    delay = problem.decision.slice("start_delay_s").start
-    lbw, ubw = _not_before(problem, lbw, ubw, deadline.start_bound_s(float(np.clip(w0[delay], lbw[delay], ubw[delay]))))
+    lbw, ubw = _live_bounds(problem, w0, lbw, ubw, deadline)
     lbg, ubg = problem.lbg.copy(), problem.ubg.copy()
     lbw, ubw = one_side_of_singularities(problem, np.clip(w0, lbw[: problem.n_w], ubw[: problem.n_w]), lbw, ubw,
                                          lbg, ubg)
@@ -336,6 +334,15 @@ def start_deadline(problem: ApproachProblem, ubw: Array, deadline: Deadline) -> 
     answered before its approach starts (a query's re-solve ran 47 s towards a start 28 s after the observation, and
     every other meeting time passed meanwhile)."""
     return deadline.in_time_for(float(ubw[problem.decision.slice("start_delay_s").start]), lead_s=START_LEAD_S)
+
+
+def _live_bounds(problem: ApproachProblem, w0: Array, lbw: Array | None, ubw: Array | None,
+                 deadline: Deadline) -> tuple[Array, Array]:
+    """Bounds ``(lbw, ubw)`` (None: the problem's) with the start delay bounded below by ``deadline`` from where the NLP
+    starts: ``w0``'s start delay [s] clipped to those bounds (:meth:`~planner.deadline.Deadline.start_bound_s`)."""
+    lbw, ubw = problem.lbw if lbw is None else lbw, problem.ubw if ubw is None else ubw
+    delay = problem.decision.slice("start_delay_s").start
+    return _not_before(problem, lbw, ubw, deadline.start_bound_s(float(np.clip(w0[delay], lbw[delay], ubw[delay]))))
 
 
 def _not_before(problem: ApproachProblem, lbw: Array, ubw: Array, earliest_s: float) -> tuple[Array, Array]:

@@ -611,6 +611,10 @@ def test_the_resumed_braking_goes_on_while_its_violation_falls_as_slowly_as_meas
     assert _first_stalled(falling) is None
     hovering = [1e-2 * 0.9**i if i < 40 else 8e-4 + 1e-4 * (i % 2) for i in range(400)]
     assert _first_stalled(hovering) is None
+    # at the edges: halved exactly every 50 iterations, or flat exactly at the floor, is no stall
+    assert _first_stalled([0.5 ** (i // 50) for i in range(400)]) is None
+    assert _first_stalled([1e-3] * 400) is None
+    assert _first_stalled([1e-3 * (1 + 1e-9)] * 400) == 50  # a hair above the floor: flat, so given up
 
 
 def test_the_resumed_braking_is_given_up_once_flat():

@@ -125,9 +125,7 @@ def test_a_scanned_guess_meeting_well_before_the_answer_is_not_started_from(scen
     started: list[tuple[float, float]] = []  # (the guess's start delay, the solve's lower bound)
 
     def recorded(problem, state, w0, scale, lbw=None, ubw=None, **kwargs):
-        bound = approach_solve._not_before(problem, problem.lbw if lbw is None else lbw,
-                                           problem.ubw if ubw is None else ubw,
-                                           kwargs["deadline"].start_bound_s(float(w0[delay])))[0][delay]
+        bound = approach_solve._live_bounds(problem, w0, lbw, ubw, kwargs["deadline"])[0][delay]  # the solve's own
         started.append((float(w0[delay]), float(bound)))
         return SimpleNamespace(success=False, iterations=1, start_guess=None)
 
