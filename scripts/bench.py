@@ -20,8 +20,9 @@ The full run refines every query state whose interpolated plan fails verificatio
 
 ``coverage`` (issue 20) runs ``--coverage-states`` seeded states (default 20; ``--quick`` 1) of each of four kinds
 (scenario I / II × flat spin / general tumble) through one ``lutgen plan`` process each under the 100 s budget
-(a process still running 30 s past it is killed), and the same states through ``lutgen query`` on the tables of
-``--coverage-tables`` (default ``tables/``): up to 2 × 80 runs of up to 100 s, hours on one core.
+(``--coverage-budget-s`` another; a process still running 30 s past it is killed), and the same states through
+``lutgen query`` on the tables of ``--coverage-tables`` (default ``tables/``): up to 2 × 80 runs of up to 100 s, hours
+on one core.
 Alone: ``OMP_NUM_THREADS=1 .venv/bin/python scripts/bench.py --only coverage --coverage-states 5``. After building a
 table, its queries alone: ``--coverage-queries-only --coverage-kinds scenario_II_flat_spin``. The same states planned
 with each scenario's variant ``configs/scenarios/<scenario>_NAME.toml``: ``--coverage-variant NAME`` (e.g. ``wide``).
@@ -136,6 +137,9 @@ def add_coverage_options(ap: argparse.ArgumentParser) -> None:
     """The coverage section's options (``--coverage-*``)."""
     ap.add_argument("--coverage-states", type=positive_int, default=None, metavar="N",
                     help="coverage: seeded states per kind (default 20; --quick 1; --trim 1 of one kind)")
+    ap.add_argument("--coverage-budget-s", type=positive_float, default=None, metavar="S",
+                    help="coverage: each plan's and query's --budget-s (default 100, issue 20's budget; --trim 2): a "
+                         "smaller one shows what an answer within S seconds gives up")
     ap.add_argument("--coverage-jobs", type=positive_int, default=1, metavar="N",
                     help="coverage: processes at a time (default 1; more share the cores and inflate wall times)")
     ap.add_argument("--coverage-tables", type=Path, default=None, metavar="DIR",
@@ -247,7 +251,7 @@ def coverage_settings_of(args: argparse.Namespace) -> CoverageSettings:
     """The coverage section's settings from the command line's options."""
     return coverage_settings(args.quick, args.trim, args.coverage_states, args.coverage_jobs, args.coverage_tables,
                              args.coverage_kinds, not args.coverage_queries_only, args.coverage_variant,
-                             args.coverage_offline_check, args.coverage_variant_check)
+                             args.coverage_offline_check, args.coverage_variant_check, args.coverage_budget_s)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -115,17 +115,20 @@ def optimal_settings(quick: bool, trim: bool, table: Path | None, states: int | 
 def coverage_settings(quick: bool, trim: bool, states: int | None, jobs: int, tables: Path | None,
                       kinds: tuple[str, ...] | None = None, plans: bool = True,
                       variant: str | None = None, offline_check: bool = False,
-                      variant_check: str | None = None) -> CoverageSettings:
+                      variant_check: str | None = None, budget_s: float | None = None) -> CoverageSettings:
     """Full: 20 states of each kind (the issue's bar); quick: 1 of each; trim: 1 of one kind, a 2 s budget, the
     golden table (it proves the code path in seconds: the plan ends over budget). ``kinds`` (None: all four, or
     trim's one) and ``plans`` (False: queries only) narrow any mode; ``offline_check`` plans each failure's state
-    offline as well, ``variant_check`` with that scenario variant as well."""
+    offline as well, ``variant_check`` with that scenario variant as well; ``budget_s`` [s] is each plan's and
+    query's budget (None: :data:`COVERAGE_BUDGET_S`, trim's 2 s)."""
     if trim:
-        return CoverageSettings(1 if states is None else states, kinds or ("scenario_II_flat_spin",), 2.0, 10.0, jobs,
+        return CoverageSettings(1 if states is None else states, kinds or ("scenario_II_flat_spin",),
+                                2.0 if budget_s is None else budget_s, 10.0, jobs,
                                 GOLDEN_TABLE.parent if tables is None else tables, plans, variant, offline_check,
                                 variant_check)
     default_states = 1 if quick else 20
-    return CoverageSettings(default_states if states is None else states, kinds, COVERAGE_BUDGET_S, 30.0, jobs,
+    return CoverageSettings(default_states if states is None else states, kinds,
+                            COVERAGE_BUDGET_S if budget_s is None else budget_s, 30.0, jobs,
                             COVERAGE_TABLES if tables is None else tables, plans, variant, offline_check,
                             variant_check)
 
