@@ -14,7 +14,6 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -587,25 +586,23 @@ def test_queries_only_runs_no_plan_and_kinds_narrow_the_section(monkeypatch):
 
 
 def test_the_coverage_budget_is_each_commands_budget_and_its_kill_time(monkeypatch):
-    """``--coverage-budget-s S`` gives every plan and query ``--budget-s S`` and kills it S + the margin after its
-    start; without it, issue 20's 100 s."""
+    """``--coverage-budget-s S`` gives every plan and query the section runs ``--budget-s S`` and kills it S + the
+    margin after its start; without it, issue 20's 100 s."""
     import bench
-    from bench_sections.common import COVERAGE_BUDGET_S
+    from bench_sections.common import COVERAGE_BUDGET_S, settings_for
 
     seen: list[tuple[list[str], float]] = []
     monkeypatch.setattr(coverage, "run_cli", lambda args, kill_after_s: seen.append((args, kill_after_s)) or
-                        CliRun(0, 1.0, "FEASIBLE\n", "", None))
-    base = ["--coverage-kinds", "scenario_I_tumble", "--coverage-states", "1", "--coverage-tables",
+                        CliRun(2, 1.0, "INFEASIBLE (1.0 s): out of reach: stand-in\n", "", None))
+    base = ["--coverage-kinds", "scenario_II_flat_spin", "--coverage-states", "2", "--coverage-tables",
             str(ROOT / "tests" / "data")]
     for extra, budget in (([], COVERAGE_BUDGET_S), (["--coverage-budget-s", "60"], 60.0)):
         seen.clear()
         cov = bench.coverage_settings_of(bench.parse_args(base + extra))
-        assert cov.budget_s == budget
-        state = coverage.kind_states(coverage.KINDS[0], 1, 7)[0]
-        coverage.run_all([coverage.plan_args("configs/scenarios/scenario_I.toml", state, cov.budget_s)],
-                         SimpleNamespace(coverage=cov))
-        (args, kill_after_s), = seen
-        assert args[args.index("--budget-s") + 1] == f"{budget:g}" and kill_after_s == budget + cov.kill_margin_s
+        coverage.coverage(settings_for(False, False, 7, None, 60.0, False, 100.0, cov))
+        assert sorted(args[0] for args, _ in seen) == ["plan", "plan", "query", "query"]
+        assert all(args[args.index("--budget-s") + 1] == f"{budget:g}" and kill_after_s == budget + cov.kill_margin_s
+                   for args, kill_after_s in seen)
     with pytest.raises(SystemExit):
         bench.parse_args(["--coverage-budget-s", "0"])
 
