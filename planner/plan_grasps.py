@@ -138,9 +138,7 @@ class GraspSearch:
                 continue
             # budgeted while another grasp remains, or the first grasp remains to fall back to
             budget = STABILIZATION_BUDGET if more or candidate is not first else None
-            last = candidate, self._stabilize(candidate, budget, SCREEN_BUDGET if more else None)
-            if candidate is first:  # the last resort goes on from here (_resumed)
-                self._first_braked = last[1]
+            last = self._braked(candidate, first, budget, SCREEN_BUDGET if more else None)
             if last[1].success or budget is None or self.deadline.passed:
                 return self._answer(*last)
             if last[1].status == SolveOutcome.SCREENED_OUT:
@@ -150,9 +148,7 @@ class GraspSearch:
         for candidate in screened_out:
             if self.deadline.passed:
                 break
-            last = candidate, self._stabilize(candidate, STABILIZATION_BUDGET)
-            if candidate is first:
-                self._first_braked = last[1]
+            last = self._braked(candidate, first, STABILIZATION_BUDGET)
             if last[1].success:
                 return last
             self._note_failure(*last, "")
@@ -161,6 +157,15 @@ class GraspSearch:
         if self._only_too_early() or self._refused(first):
             return self._unbraked(first, whole, t_start)
         return self._answer(first, self._resumed(first))
+
+    def _braked(self, candidate: GraspCandidate, first: GraspCandidate, budget: int | None,
+                screen: int | None = None) -> tuple[GraspCandidate, StabilizationSolution]:
+        """``candidate`` with its stabilization (:meth:`_stabilize`), kept when ``candidate`` is ``first``: the last
+        resort goes on from there (:meth:`_resumed`)."""
+        stab = self._stabilize(candidate, budget, screen)
+        if candidate is first:
+            self._first_braked = stab
+        return candidate, stab
 
     def _resumed(self, first: GraspCandidate) -> StabilizationSolution:
         """The first grasp's stabilization without the budget, once no other grasp stabilized: from where its budgeted

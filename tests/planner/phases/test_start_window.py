@@ -12,7 +12,7 @@ import pytest
 
 import planner.phases.approach_solve as approach_solve
 from planner.config.scenario import load_scenario
-from planner.deadline import FLOOR_STEP_S, START_LEAD_S, Deadline
+from planner.deadline import FLOOR_STEP_S, START_LEAD_S, STEADY_REACH_S, Deadline
 from planner.model.target import TargetState
 from planner.phases.approach import approach_spline
 from planner.phases.approach_guess import reach_scan
@@ -186,6 +186,28 @@ def test_the_earliest_start_raises_the_bound_and_pins_it_at_a_closed_window(scen
     at_end, _ = approach_solve._not_before(problem, problem.lbw, problem.ubw, latest)
     closed, ub = approach_solve._not_before(problem, problem.lbw, problem.ubw, latest + 30.0)
     assert at_end[delay] == latest and closed[delay] == latest == ub[delay]
+
+
+def test_the_live_bound_is_taken_from_the_guess_clipped_to_the_window(scenario_I):
+    """A guess's start delay outside the NLP's bounds is clipped to them before the bound is taken from it: a guess past
+    the window's end bounds the solve STEADY_REACH_S before the end (unclipped, its bound would close the window at the
+    end), one before the window's start at the earliest start; a guess exactly STEADY_REACH_S past the earliest start
+    gives the earliest start itself."""
+    problem = Planner(scenario_I).approach
+    delay = problem.decision.slice("start_delay_s").start
+    latest = scenario_I.phases.max_start_delay_s
+    deadline = _live(0.2)  # the earliest start rounds to the same whole second for the next 0.8 s
+    earliest = deadline.earliest_start_s()
+    w0 = np.zeros(problem.n_w)
+    for guess_s, lower_s in ((latest + 100.0, latest - STEADY_REACH_S), (latest, latest - STEADY_REACH_S),
+                             (-5.0, earliest), (earliest + STEADY_REACH_S, earliest)):
+        w0[delay] = guess_s
+        lbw, ubw = approach_solve._live_bounds(problem, w0, None, None, deadline)
+        assert (lbw[delay], ubw[delay]) == (lower_s, latest), guess_s
+        np.testing.assert_array_equal(np.delete(lbw, delay), np.delete(problem.lbw, delay))
+    # offline (no observation) the bounds are the problem's own, whatever the guess
+    w0[delay] = latest + 100.0
+    assert approach_solve._live_bounds(problem, w0, None, None, Deadline())[0] is problem.lbw
 
 
 def _live(since_s: float) -> Deadline:
