@@ -112,19 +112,19 @@ def bed_state(bed: str) -> tuple[Any, Any, None]:
 def plan_bed(bed: str, variant: str, save: Path | None) -> None:
     """One whole plan of ``bed`` under ``variant``: iterations, seconds, verdict; the stabilization calls kept."""
     apply_variant(variant)
-    import planner.plan_grasps as pg
+    import planner.grasp_candidate as gc  # every plan's stabilization solves go through GraspCandidate.stabilize
     from planner.verify.verifier import verify
 
     calls = []
-    solve = pg.solve_stabilization
+    solve = gc.solve_stabilization
 
     def recording(problem: Any, grasp: Any, warm: Any, max_it: Any = None, screen: Any = None, *args: Any) -> Any:
         out = solve(problem, grasp, warm, max_it, screen, *args)
-        calls.append({"grasp": grasp, "warm": warm, "max_it": max_it, "screen": screen,
+        calls.append({"grasp": grasp, "warm": warm, "max_it": max_it, "screen": screen, "stall": _stall_of(args),
                       "iterations": out.iterations, "status": str(out.status), "solve_s": out.solve_time_s})
         return out
 
-    pg.solve_stabilization = recording
+    gc.solve_stabilization = recording
     t0 = time.perf_counter()
     sc, state, _ = bed_state(bed)
     if bed == "b":
@@ -157,6 +157,12 @@ def plan_bed(bed: str, variant: str, save: Path | None) -> None:
             pickle.dump({"scenario": sc if bed != "b" else tq.planner.scenario, "calls": calls}, fh)
 
 
+def _stall_of(args: tuple) -> Any:
+    """The stall rule a recorded ``solve_stabilization(problem, grasp, warm, max_it, screen, deadline, stall)`` call
+    was armed with (None: none), so that its re-solve ends where the plan's did."""
+    return args[1] if len(args) > 1 else None
+
+
 def stab_beds(beds: list[str], variants: list[str], load: Path) -> None:
     """Re-solve the recorded stabilization calls of ``beds`` under every variant, alternating per call."""
     import planner.phases.stabilization as st
@@ -181,7 +187,8 @@ def stab_beds(beds: list[str], variants: list[str], load: Path) -> None:
                 t = time.perf_counter()
                 st.ipopt_options = lambda s, *a, _e=VARIANTS[variant][0]: base(s, *a) | _e
                 _second_derivatives_compiled(VARIANTS[variant][1])
-                out = solve_stabilization(problems[key], call["grasp"], call["warm"], call["max_it"], call["screen"])
+                out = solve_stabilization(problems[key], call["grasp"], call["warm"], call["max_it"], call["screen"],
+                                          stall=call.get("stall"))
                 wall = time.perf_counter() - t
                 print(f"bed {bed} call {i} ({'warm' if call['warm'] is not None else 'cold'}, budget {call['max_it']},"
                       f" screen {call['screen']}) {variant:15s}: {out.iterations:4d} it {wall:7.2f} s "
