@@ -69,8 +69,11 @@ from planner.verify.verifier import VerifyReport, verify
 # follows: a warm approach NLP from an interpolated plan in collision can stall for the whole budget, while the cold
 # plan (its own guesses) would have found a feasible plan in the rest (docs/measurements.md, "Optimal tables")
 # and at most this [s]: a warm refine that fails holds the cold solve back for its whole share, while those that
-# succeed need far less (README "Envelope tables")
-WARM_REFINE_CAP_S = 30.0
+# succeed need far less, and a live cold solve begun later reaches fewer meeting times (README "Envelope tables")
+WARM_REFINE_CAP_S = 12.0
+# an optimal table's warm refine lowers its cost for as long as it is given (how a query keeps the optimum): the cap
+# its queries were measured with (README "Optimal tables")
+COSTED_WARM_REFINE_CAP_S = 30.0
 
 
 class TableQuery:
@@ -156,7 +159,7 @@ class TableQuery:
         The refine runs in a child process whose plan ends at the budget less :data:`FINISH_RESERVE_S` (to
         re-simulate and verify its answer here) and which is killed there, so a query never overruns, whatever
         the solver does. A warm refine that is not asked for gets :data:`WARM_SHARE` of the time left, at most
-        :data:`WARM_REFINE_CAP_S`, so that the cold solve after it (if it gives no feasible plan) has the rest.
+        :attr:`warm_refine_cap_s`, so that the cold solve after it (if it gives no feasible plan) has the rest.
         """
         t_start = time.perf_counter()
         self.observed_at_s = time.monotonic() if since_s is None else since_s  # the observation: the refine's too
@@ -231,7 +234,7 @@ class TableQuery:
             if not (best is None or not best[1].feasible or refine) or remaining < MIN_REFINE_S:
                 break
             before_cold = i + 1 < len(attempts) and not refine  # the cold solve keeps the rest
-            share_s = min(WARM_SHARE * remaining, WARM_REFINE_CAP_S) if before_cold else remaining
+            share_s = min(WARM_SHARE * remaining, self.warm_refine_cap_s) if before_cold else remaining
             t0 = time.perf_counter()
             refined = self.refine(state, start, max(MIN_REFINE_S, share_s))
             latency["refine_s"] = latency.get("refine_s", 0.0) + time.perf_counter() - t0
@@ -244,6 +247,12 @@ class TableQuery:
                 refine_failure = refined.failure_reason
             refine = False  # an asked-for refine is the warm one; the cold solve only stands in for a missing plan
         return best, refine_failure
+
+    @property
+    def warm_refine_cap_s(self) -> float:
+        """The most [s] a warm refine followed by a cold solve may take: :data:`WARM_REFINE_CAP_S` for a table of
+        feasible plans, :data:`COSTED_WARM_REFINE_CAP_S` for a table of optimal plans (its refine descends the cost)."""
+        return WARM_REFINE_CAP_S if self.scorer.feasibility_only else COSTED_WARM_REFINE_CAP_S
 
     def out_of_reach(self, state: TargetState, t_start: float) -> OutOfReach | None:
         """Why no solve can plan ``state`` when no meeting time of the window brings the grasp within the arm's reach

@@ -147,9 +147,25 @@ def test_a_warm_refine_gets_half_of_what_is_left_at_most_its_cap_and_the_cold_so
     # the stand-in's warm refine takes no time: the cold solve gets all that is left, not the other half
     assert 100.0 - tq_module.FINISH_RESERVE_S - 10.0 < cold_s <= 100.0 - tq_module.FINISH_RESERVE_S
     budgets.clear()
-    opened.query(STATE, budget_s=40.0)  # half of what is left is under the cap
+    # half of what is left after the table (a few seconds at most) is under the cap
+    opened.query(STATE, budget_s=tq_module.FINISH_RESERVE_S + 2 * tq_module.WARM_REFINE_CAP_S - 1.0)
     assert budgets[0][1] < tq_module.WARM_REFINE_CAP_S
     assert budgets[0][1] == pytest.approx(tq_module.WARM_SHARE * budgets[1][1], abs=2.0)
+
+
+def test_an_optimal_tables_warm_refine_keeps_the_longer_cap_its_descent_was_measured_with(opened, monkeypatch):
+    """A table of optimal plans: its warm refine lowers the cost while it has time, so it keeps the cap its queries
+    were measured with; a table of feasible plans gets the shorter one (README "Envelope tables")."""
+    assert tq_module.WARM_REFINE_CAP_S < tq_module.COSTED_WARM_REFINE_CAP_S
+    assert opened.scorer.feasibility_only and opened.warm_refine_cap_s == tq_module.WARM_REFINE_CAP_S
+    budgets: list[float] = []
+    _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible=set())
+    monkeypatch.setattr(opened, "refine", lambda state, warm, budget_s: (
+        budgets.append(budget_s), PointResult(-1, PointStatus.FAILED, "stand-in: no solve"))[1])
+    monkeypatch.setattr(type(opened.scorer), "feasibility_only", property(lambda scorer: False))
+    monkeypatch.setattr(opened, "cost_breakdowns", lambda plan, report, corners: ())
+    opened.query(STATE, budget_s=100.0)
+    assert budgets[0] == tq_module.COSTED_WARM_REFINE_CAP_S
 
 
 def test_an_asked_for_refine_skips_the_corners(opened, monkeypatch):
