@@ -113,14 +113,16 @@ def plan_bed(bed: str, variant: str, save: Path | None) -> None:
     """One whole plan of ``bed`` under ``variant``: iterations, seconds, verdict; the stabilization calls kept."""
     apply_variant(variant)
     import planner.grasp_candidate as gc  # every plan's stabilization solves go through GraspCandidate.stabilize
+    from planner.deadline import NO_DEADLINE
     from planner.verify.verifier import verify
 
     calls = []
     solve = gc.solve_stabilization
 
-    def recording(problem: Any, grasp: Any, warm: Any, max_it: Any = None, screen: Any = None, *args: Any) -> Any:
-        out = solve(problem, grasp, warm, max_it, screen, *args)
-        calls.append({"grasp": grasp, "warm": warm, "max_it": max_it, "screen": screen, "stall": _stall_of(args),
+    def recording(problem: Any, grasp: Any, warm: Any, max_it: Any = None, screen: Any = None,
+                  deadline: Any = NO_DEADLINE, stall: Any = None) -> Any:
+        out = solve(problem, grasp, warm, max_it, screen, deadline, stall)
+        calls.append({"grasp": grasp, "warm": warm, "max_it": max_it, "screen": screen, "stall": stall,
                       "iterations": out.iterations, "status": str(out.status), "solve_s": out.solve_time_s})
         return out
 
@@ -155,12 +157,6 @@ def plan_bed(bed: str, variant: str, save: Path | None) -> None:
         save.mkdir(parents=True, exist_ok=True)
         with open(save / f"stab_{bed}.pkl", "wb") as fh:
             pickle.dump({"scenario": sc if bed != "b" else tq.planner.scenario, "calls": calls}, fh)
-
-
-def _stall_of(args: tuple) -> Any:
-    """The stall rule a recorded ``solve_stabilization(problem, grasp, warm, max_it, screen, deadline, stall)`` call
-    was armed with (None: none), so that its re-solve ends where the plan's did."""
-    return args[1] if len(args) > 1 else None
 
 
 def stab_beds(beds: list[str], variants: list[str], load: Path) -> None:

@@ -160,8 +160,12 @@ def test_an_optimal_tables_warm_refine_keeps_the_longer_cap_its_descent_was_meas
     assert opened.scorer.feasibility_only and opened.warm_refine_cap_s == tq_module.WARM_REFINE_CAP_S
     budgets: list[float] = []
     _stand_in(opened, monkeypatch, {0: 0.5, 1: 0.5}, feasible=set())
-    monkeypatch.setattr(opened, "refine", lambda state, warm, budget_s: (
-        budgets.append(budget_s), PointResult(-1, PointStatus.FAILED, "stand-in: no solve"))[1])
+
+    def refine(state, warm, budget_s):
+        budgets.append(budget_s)
+        return PointResult(-1, PointStatus.FAILED, "stand-in: no solve")
+
+    monkeypatch.setattr(opened, "refine", refine)
     monkeypatch.setattr(type(opened.scorer), "feasibility_only", property(lambda scorer: False))
     monkeypatch.setattr(opened, "cost_breakdowns", lambda plan, report, corners: ())
     opened.query(STATE, budget_s=100.0)
